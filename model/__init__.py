@@ -1,0 +1,20 @@
+"""artformer core: articulated-object model, data, networks, export, metrics.
+
+Plain Python (torch / numpy / trimesh); never imports rclpy. Heavy submodules load lazily.
+"""
+from model.core import (TOKEN_DIM, ArticulatedObject, Joint, JointType, ObjectValidationError,
+                        Part)
+
+__version__ = "0.1.0"
+
+__all__ = ["TOKEN_DIM", "ArticulatedObject", "Joint", "JointType", "ObjectValidationError",
+           "Part", "generate", "__version__"]
+
+
+def generate(text=None, *, image=None, seed=0, samples=1, **kwargs):
+    """Generate articulated objects from a text (or an image) with the shipped model.
+
+    Thin convenience wrapper over ``model.pipeline.Generator`` (loaded once, cached).
+    """
+    from model.pipeline import default_generator
+    return default_generator().generate(text, image=image, seed=seed, samples=samples, **kwargs)

@@ -1,0 +1,46 @@
+"""`artformer` command line. Subcommands live beside the code they drive and are imported
+only when used, so `artformer --help` stays fast (no torch import)."""
+from __future__ import annotations
+
+import importlib
+import sys
+
+# (words...) -> module with `main(argv: list[str]) -> int`; argv keeps the route words.
+ROUTES: dict[tuple[str, ...], tuple[str, str]] = {
+    ("export",): ("model.export.commands", "export the built-in example object(s) to URDF folders"),
+    ("data",): ("model.data.commands", "synth / prepare / stats of the articulated-object dataset"),
+    ("train", "sdf"): ("model.geometry.commands", "train the tri-plane SDF auto-encoder"),
+    ("train", "prior"): ("model.geometry.commands", "train the codebook diffusion shape prior"),
+    ("train", "transformer"): ("model.articulation.commands", "train the articulation transformer"),
+    ("generate",): ("model.pipeline.commands", "text or image -> URDF + meshes"),
+    ("edit",): ("model.pipeline.commands", "remove parts of a URDF and regenerate them from text"),
+    ("eval",): ("model.metrics.commands", "evaluate a checkpoint (POR, MMD/COV/1-NNA, alignment...)"),
+    ("bench",): ("model.metrics.commands", "per-stage speed and memory benchmark"),
+}
+
+
+def _usage() -> str:
+    lines = ["usage: artformer <command> [...]", "", "commands:"]
+    for words, (_, help_) in ROUTES.items():
+        lines.append(f"  {' '.join(words):<18} {help_}")
+    lines.append("")
+    lines.append("`artformer <command> --help` for the options of one command.")
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    if not argv or argv[0] in ("-h", "--help"):
+        print(_usage())
+        return 0
+    for n in (2, 1):
+        key = tuple(argv[:n])
+        if key in ROUTES:
+            module = importlib.import_module(ROUTES[key][0])
+            return int(module.main(argv) or 0)
+    print(f"artformer: unknown command {' '.join(argv[:2])!r}\n\n{_usage()}", file=sys.stderr)
+    return 2
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

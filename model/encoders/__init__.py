@@ -1,0 +1,1 @@
+"""Frozen condition encoders (text; image) shared by the shape prior and the transformer."""

@@ -1,0 +1,49 @@
+"""Public generation API (contract shared by the CLI, the ROS node, eval and bench).
+
+    gen = Generator.load(GenerationConfig(checkpoint=None))   # None = shipped model
+    results = gen.generate("a cabinet with two drawers", seed=3, samples=1)
+    exported = gen.export(results[0], "out/cabinet")            # URDF + meshes + preview
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Optional
+
+from model.core import ArticulatedObject
+
+
+class GenerationError(RuntimeError):
+    """A request could not produce a valid object; the message says why."""
+
+
+@dataclass
+class GenerationConfig:
+    checkpoint: Optional[str] = None   # folder of the three stage checkpoints; None = shipped
+    resolution: int = 64               # effective marching-cubes resolution per part
+    steps: int = 50                    # DDIM steps of the shape prior
+    guidance: float = 1.0              # classifier-free guidance scale (1 = off)
+    temperature: float = 0.5           # Gumbel-softmax temperature at generation
+    geometry: str = "generate"         # generate | retrieve
+    mesh_format: str = "obj"           # obj | stl | glb
+    device: str = "cpu"
+    threads: int = 2
+    max_nodes: int = 32
+    max_depth: int = 4
+    max_children: int = 16
+
+
+@dataclass
+class GeneratedObject:
+    obj: ArticulatedObject
+    prompt: str
+    seed: int
+    timings: dict[str, float] = field(default_factory=dict)   # stage -> seconds
+
+
+@dataclass
+class ExportResult:
+    out_dir: str
+    urdf_path: str
+    mesh_paths: dict[str, str]          # link name -> mesh file
+    metadata_path: str
+    preview_path: Optional[str] = None
