@@ -8,12 +8,16 @@ import sys
 # (words...) -> module with `main(argv: list[str]) -> int`; argv keeps the route words.
 ROUTES: dict[tuple[str, ...], tuple[str, str]] = {
     ("export",): ("model.export.commands", "export the built-in example object(s) to URDF folders"),
+    ("data", "render"): ("model.imaging.commands", "render dataset objects for image conditioning"),
     ("data",): ("model.data.commands", "synth / prepare / stats of the articulated-object dataset"),
     ("train", "sdf"): ("model.geometry.commands", "train the tri-plane SDF auto-encoder"),
     ("train", "prior"): ("model.geometry.commands", "train the codebook diffusion shape prior"),
     ("train", "transformer"): ("model.articulation.commands", "train the articulation transformer"),
+    ("train", "image"): ("model.imaging.commands", "train the image-conditioned transformer"),
     ("generate",): ("model.pipeline.commands", "text or image -> URDF + meshes"),
     ("edit",): ("model.pipeline.commands", "remove parts of a URDF and regenerate them from text"),
+    ("eval", "geometry"): ("model.geometry.commands", "shape-prior reconstruction / sample quality"),
+    ("bench", "geometry"): ("model.geometry.commands", "shape-prior meshing and DDIM speed"),
     ("eval",): ("model.metrics.commands", "evaluate a checkpoint (POR, MMD/COV/1-NNA, alignment...)"),
     ("bench",): ("model.metrics.commands", "per-stage speed and memory benchmark"),
 }
