@@ -1,0 +1,190 @@
+"""The cached render set of a prepared dataset (``artformer data render``).
+
+Layout of a render folder ``OUT`` (one per render version)::
+
+    OUT/manifest.json          {"format": 1, "render_version": int, "data": str,
+                                "data_version": str, "views": K, "size": 224, "seed": int}
+    OUT/objects/<id>/<k>.png   view k of object <id> (224×224 RGB), k = 0..K-1
+    OUT/objects/<id>/views.json  {"id", "category", "split", "views": [ViewSpec...]}
+                               (written last: its presence marks the object done)
+    OUT/features/<tag>.npz     cached encoder trunk features of every view (model.imaging.train)
+
+Rendering is resumable (done objects are skipped), deterministic per (object id, seed), and
+parallel over objects (a process pool).
+"""
+from __future__ import annotations
+
+import io
+import json
+import logging
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Optional
+
+import numpy as np
+
+from model.core import ArticulatedObject
+from model.data.format import ObjectRecord, atomic_write_bytes, atomic_write_json, load_manifest, load_record
+
+from .render import RENDER_SIZE, ViewSpec, render_view, sample_views
+
+log = logging.getLogger(__name__)
+
+RENDER_FORMAT = 1
+RENDER_VERSION = 1      # bump when the view distribution or the renderer changes
+
+
+class RenderSetError(RuntimeError):
+    """A render folder is missing, incomplete or does not match the request."""
+
+
+def object_from_record(data_root: os.PathLike, rec: ObjectRecord) -> ArticulatedObject:
+    """Rebuild a record's object with part meshes (rest pose, object frame).
+
+    Uses the prepared watertight meshes ``meshes/<id>/<k>.obj`` when they exist, else reads the
+    source object folder with the dataset's PartNet-Mobility loader.
+    """
+    import trimesh
+    root = Path(data_root)
+    obj = ArticulatedObject.from_tokens(np.asarray(rec.tokens, float), rec.joint_types, rec.parents,
+                                        rec.labels, category=rec.category, name=rec.id)
+    mesh_dir = root / "meshes" / rec.id
+    paths = [mesh_dir / f"{k}.obj" for k in range(rec.num_parts)]
+    if all(p.exists() for p in paths):
+        for part, p in zip(obj.parts, paths):
+            part.mesh = trimesh.load(p, force="mesh", process=False)
+        return obj
+    if rec.source and Path(rec.source).exists():
+        return _object_from_source(rec)
+    raise RenderSetError(f"object {rec.id}: no prepared meshes in {mesh_dir} and source folder "
+                         f"{rec.source!r} is missing; re-run `artformer data prepare` with meshes")
+
+
+def _object_from_source(rec: ObjectRecord) -> ArticulatedObject:
+    from model.data import partnet  # the dataset's PartNet-Mobility loader
+    obj = partnet.load_object(rec.source)
+    if len(obj.parts) != rec.num_parts:
+        log.warning("object %s: source has %d parts, record %d", rec.id, len(obj.parts), rec.num_parts)
+    obj.name, obj.category = rec.id, rec.category
+    return obj
+
+
+def _png_bytes(img: np.ndarray) -> bytes:
+    from PIL import Image
+    buf = io.BytesIO()
+    Image.fromarray(img).save(buf, format="PNG", optimize=False, compress_level=6)
+    return buf.getvalue()
+
+
+def _render_one(args) -> tuple[str, Optional[str]]:
+    data_root, out_root, obj_id, views, seed, size = args
+    try:
+        done = Path(out_root) / "objects" / obj_id / "views.json"
+        if done.exists():
+            return obj_id, None
+        rec = load_record(data_root, obj_id)
+        obj = object_from_record(data_root, rec)
+        specs = sample_views(obj_id, list(rec.labels), views, seed)
+        folder = done.parent
+        for k, spec in enumerate(specs):
+            atomic_write_bytes(folder / f"{k}.png", _png_bytes(render_view(obj, spec, size)))
+        atomic_write_json(done, {"id": obj_id, "category": rec.category, "split": rec.split,
+                                 "views": [s.to_json() for s in specs]})
+        return obj_id, None
+    except Exception as e:  # one broken object must not stop the set; reported at the end
+        return obj_id, f"{type(e).__name__}: {e}"
+
+
+@dataclass
+class RenderReport:
+    rendered: int
+    skipped: int
+    failed: dict
+    seconds: float
+
+
+def render_dataset(data_root: os.PathLike, out_root: os.PathLike, views: int = 8, seed: int = 0,
+                   workers: int = 2, limit: int = 0, splits: tuple[str, ...] = ("train", "val", "test"),
+                   progress: bool = False) -> RenderReport:
+    """Render every object of the given splits (``limit`` > 0: the first N ids of each split)."""
+    import time
+    t0 = time.perf_counter()
+    data_root, out_root = Path(data_root), Path(out_root)
+    manifest = load_manifest(data_root)
+    want = {"format": RENDER_FORMAT, "render_version": RENDER_VERSION,
+            "data": str(data_root), "data_version": manifest.get("data_version", ""),
+            "views": int(views), "size": RENDER_SIZE, "seed": int(seed)}
+    mpath = out_root / "manifest.json"
+    if mpath.exists():
+        have = json.loads(mpath.read_text())
+        keys = ("format", "render_version", "data_version", "views", "size", "seed")
+        diff = {k: (have.get(k), want[k]) for k in keys if have.get(k) != want[k]}
+        if diff:
+            raise RenderSetError(f"{out_root} holds renders made with other settings {diff} "
+                                 f"(existing, requested); choose a new --out or delete it")
+    else:
+        atomic_write_json(mpath, want)
+    ids = []
+    for s in splits:
+        sid = list(manifest["splits"].get(s, []))
+        ids += sid[:limit] if limit > 0 else sid
+    todo = [i for i in ids if not (out_root / "objects" / i / "views.json").exists()]
+    jobs = [(str(data_root), str(out_root), i, int(views), int(seed), RENDER_SIZE) for i in todo]
+    failed = {}
+    bar = None
+    if progress:
+        from tqdm import tqdm
+        bar = tqdm(total=len(jobs), desc="render", unit="obj")
+    if workers > 1 and len(jobs) > 1:
+        import multiprocessing as mp
+        with mp.get_context("fork").Pool(workers) as pool:
+            for oid, err in pool.imap_unordered(_render_one, jobs, chunksize=4):
+                if err:
+                    failed[oid] = err
+                if bar:
+                    bar.update(1)
+    else:
+        for job in jobs:
+            oid, err = _render_one(job)
+            if err:
+                failed[oid] = err
+            if bar:
+                bar.update(1)
+    if bar:
+        bar.close()
+    for oid, err in list(failed.items())[:5]:
+        log.warning("render of %s failed: %s", oid, err)
+    return RenderReport(rendered=len(jobs) - len(failed), skipped=len(ids) - len(jobs),
+                        failed=failed, seconds=time.perf_counter() - t0)
+
+
+# ---------------------------------------------------------------------------------------------
+# Reading
+# ---------------------------------------------------------------------------------------------
+def load_render_manifest(out_root: os.PathLike) -> dict:
+    path = Path(out_root) / "manifest.json"
+    if not path.exists():
+        raise RenderSetError(f"{out_root} is not a render folder (no manifest.json); "
+                             f"run `artformer data render` first")
+    m = json.loads(path.read_text())
+    if m.get("format") != RENDER_FORMAT:
+        raise RenderSetError(f"{out_root}: render format {m.get('format')} != {RENDER_FORMAT}")
+    return m
+
+
+def rendered_ids(out_root: os.PathLike, ids: list[str]) -> list[str]:
+    """The ids among ``ids`` whose renders are complete."""
+    root = Path(out_root) / "objects"
+    return [i for i in ids if (root / i / "views.json").exists()]
+
+
+def view_paths(out_root: os.PathLike, obj_id: str) -> list[Path]:
+    folder = Path(out_root) / "objects" / obj_id
+    meta = json.loads((folder / "views.json").read_text())
+    return [folder / f"{k}.png" for k in range(len(meta["views"]))]
+
+
+def view_specs(out_root: os.PathLike, obj_id: str) -> list[ViewSpec]:
+    meta = json.loads((Path(out_root) / "objects" / obj_id / "views.json").read_text())
+    return [ViewSpec(**v) for v in meta["views"]]
