@@ -1,0 +1,107 @@
+"""`artformer train transformer ...` — train the articulation transformer.
+
+    artformer train transformer --data data/prepared/v1 --prior model/weights/prior_small.pt \
+        --sdf model/weights/sdf_small.pt --preset small --out runs/transformer_small \
+        [--resume] [--ablation none|no_tpe|one_codebook|no_shape_prior] [--steps N] [--minutes M]
+    artformer train transformer --eval runs/transformer_small/transformer.pt \
+        --data data/prepared/v1 --split test      # structure-alignment figure of a checkpoint
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import shlex
+from pathlib import Path
+
+
+def _parser() -> argparse.ArgumentParser:
+    from .config import ABLATIONS, PRESETS  # light: no torch network import
+    ap = argparse.ArgumentParser(prog="artformer train transformer",
+                                 description="Train the articulation transformer on a prepared "
+                                             "dataset, or --eval a checkpoint's structure alignment.")
+    ap.add_argument("--data", default="data/prepared/v1", help="prepared dataset folder")
+    ap.add_argument("--prior", default="model/weights/prior_small.pt",
+                    help="shape-prior checkpoint (P_gt and c_s targets); 'none' = stand-in "
+                         "targets without a prior (development only)")
+    ap.add_argument("--sdf", default="model/weights/sdf_small.pt",
+                    help="SDF auto-encoder checkpoint (part latents z)")
+    ap.add_argument("--preset", default="small", choices=sorted(PRESETS))
+    ap.add_argument("--out", default="runs/transformer_small")
+    ap.add_argument("--resume", action="store_true", help="continue from OUT/last.pt")
+    ap.add_argument("--ablation", default="none", choices=ABLATIONS)
+    ap.add_argument("--steps", type=int, help="override max_steps")
+    ap.add_argument("--minutes", type=float, help="override the wall-clock budget (0 = none)")
+    ap.add_argument("--batch-size", type=int)
+    ap.add_argument("--lr", type=float)
+    ap.add_argument("--seed", type=int)
+    ap.add_argument("--threads", type=int)
+    ap.add_argument("--text-encoder", help="'all-minilm-l6-v2' or a local transformers folder")
+    ap.add_argument("--half", metavar="PATH", help="also write an fp16 copy of the final "
+                                                   "checkpoint to PATH (the shipped file)")
+    ap.add_argument("--eval", metavar="CKPT", help="measure structure alignment of CKPT on --split")
+    ap.add_argument("--split", default="test")
+    ap.add_argument("--lengths", default="all",
+                    help="description lengths for --eval (comma list or 'all')")
+    ap.add_argument("--limit", type=int, default=0, help="--eval: at most this many objects")
+    ap.add_argument("--eval-seed", type=int, default=0)
+    ap.add_argument("--temperature", type=float, default=1.0)
+    ap.add_argument("--json", metavar="PATH", help="--eval: write the report as JSON")
+    ap.add_argument("--no-progress", action="store_true")
+    return ap
+
+
+def make_targets(prior: str, sdf: str, net_cfg):
+    from .targets import PriorTargets, StandInTargets
+    if prior.lower() == "none":
+        logging.getLogger(__name__).warning(
+            "training with STAND-IN targets (no shape prior): for development and tests only")
+        return StandInTargets(z_dim=net_cfg.z_dim, num_codebooks=max(net_cfg.num_codebooks, 1),
+                              codebook_size=net_cfg.codebook_size, cs_dim=net_cfg.cs_dim)
+    for p in (prior, sdf):
+        if not Path(p).exists():
+            raise SystemExit(f"artformer train transformer: {p} does not exist; train the shape "
+                             f"prior first (`artformer train sdf` / `artformer train prior`) "
+                             f"or pass --prior none for stand-in targets")
+    return PriorTargets(prior, sdf)
+
+
+def main(argv: list[str]) -> int:
+    if argv[:2] == ["train", "transformer"]:
+        argv = argv[2:]
+    args = _parser().parse_args(argv)
+    logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s: %(message)s")
+    if args.eval:
+        from .evaluate import alignment_report
+        lengths = None if args.lengths == "all" else args.lengths.split(",")
+        rep = alignment_report(args.eval, args.data, split=args.split, lengths=lengths,
+                               limit=args.limit, seed=args.eval_seed,
+                               temperature=args.temperature, progress=not args.no_progress)
+        print(json.dumps({k: v for k, v in rep.items() if k != "rows"}, indent=1))
+        if args.json:
+            Path(args.json).write_text(json.dumps(rep, indent=1))
+        return 0
+    from .config import preset
+    overrides = {k: v for k, v in {"max_steps": args.steps, "max_minutes": args.minutes,
+                                   "batch_size": args.batch_size, "lr": args.lr,
+                                   "seed": args.seed, "threads": args.threads,
+                                   "text_encoder": args.text_encoder}.items() if v is not None}
+    net_cfg, tc = preset(args.preset, args.ablation, **overrides)
+    from .train import RunConfig, train
+    targets = make_targets(args.prior, args.sdf, net_cfg)
+    command = "artformer train transformer " + " ".join(shlex.quote(a) for a in argv)
+    path = train(RunConfig(data=args.data, out=args.out, net=net_cfg, train=tc, targets=targets,
+                           resume=args.resume, ablation=args.ablation, command=command,
+                           progress=not args.no_progress))
+    if args.half:
+        from .checkpoint import build_network, read_checkpoint, save_checkpoint
+        ck = read_checkpoint(path)
+        net = build_network(ck)
+        keep = {k: ck[k] for k in ("ablation", "targets", "elapsed", "history") if k in ck}
+        save_checkpoint(args.half, net, stats=ck["stats"], label_table=ck["label_table"],
+                        text_encoder=ck["text_encoder"], data_version=ck["data_version"],
+                        seed=ck["seed"], command=ck["command"], step=ck["step"],
+                        train_config=ck["train_config"], extra=keep, half=True)
+        print(f"fp16 copy: {args.half}")
+    print(f"checkpoint: {path}")
+    return 0

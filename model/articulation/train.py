@@ -1,0 +1,326 @@
+"""Training of the articulation transformer (DESIGN §5).
+
+    prepare_data(data_root, targets, cache_dir)  -> PreparedData (items, stats, label table)
+    train(run_cfg)                               -> path of the final checkpoint
+
+Samples are decoding rounds of the ground-truth trees (see ``data``); every step draws a
+batch of (object, round) pairs, one description per object from a random length, and drops
+the text condition per sample with probability ``cond_dropout``.
+"""
+from __future__ import annotations
+
+import json
+import logging
+import math
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Optional
+
+import numpy as np
+import torch
+
+from model.data import format as fmt
+from model.data.vocab import semantic_text
+
+from .checkpoint import read_checkpoint, save_checkpoint
+from .config import ArticulationConfig, TrainConfig
+from .data import TextCache, TreeItem, collate, make_item, pick_texts, round_sample
+from .network import ArticulationTransformer
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class PreparedData:
+    items: dict[str, list[TreeItem]]           # split -> items
+    stats: dict                                # tok_mean/tok_std (16,), z_mean/z_std or None
+    label_table: dict                          # categories, labels, cs (T, 64)
+    geo_shape: tuple[int, ...]                 # (C, N) or (Z,)
+    data_version: str
+    records: dict[str, list[fmt.ObjectRecord]] = field(default_factory=dict)
+
+
+def _part_targets(root: Path, recs: list[fmt.ObjectRecord], targets, predict_z: bool,
+                  cache_path: Optional[Path]) -> dict[str, np.ndarray]:
+    """Per object: geometry target of every part (P_gt (K,C,N) or raw z (K,Z)), cached."""
+    key = f"{getattr(targets, 'name', 'targets')}:{getattr(targets, 'prior_path', '')}:" \
+          f"{getattr(targets, 'sdf_path', '')}:{'z' if predict_z else 'P'}"
+    cache = {}
+    if cache_path is not None and cache_path.exists():
+        d = torch.load(cache_path, map_location="cpu", weights_only=False)
+        if d.get("key") == key:
+            cache = d["geo"]
+    todo = [r for r in recs if r.id not in cache]
+    if todo:
+        from tqdm import tqdm
+        for r in tqdm(todo, desc="part targets", unit="obj", disable=len(todo) < 50):
+            arr = fmt.load_part_arrays(root, r.id)
+            z = targets.part_latents(arr["points"].astype(np.float32))          # (K, Z)
+            if predict_z:
+                cache[r.id] = np.asarray(z, np.float32)
+            else:
+                cache[r.id] = targets.code_distribution(torch.as_tensor(z)).numpy().astype(np.float32)
+        if cache_path is not None:
+            cache_path.parent.mkdir(parents=True, exist_ok=True)
+            torch.save({"key": key, "geo": cache}, cache_path)
+    return cache
+
+
+def prepare_data(data_root: str, targets, *, predict_z: bool = False,
+                 splits: tuple[str, ...] = ("train", "val"),
+                 cache_dir: Optional[str] = None, stats: Optional[dict] = None,
+                 label_table: Optional[dict] = None) -> PreparedData:
+    """Read a prepared dataset and build training items. ``stats`` / ``label_table`` from a
+    checkpoint are reused when given (evaluation), else computed on the train split."""
+    root = Path(data_root)
+    manifest = fmt.load_manifest(root)
+    version = str(manifest.get("data_version", "unknown"))
+    cache = Path(cache_dir) if cache_dir else None
+    recs = {s: [fmt.load_record(root, i) for i in manifest["splits"].get(s, [])]
+            for s in set(splits) | {"train"}}
+    if not recs["train"]:
+        raise ValueError(f"{root}: the train split is empty")
+    geo = {}
+    for s, rs in recs.items():
+        if s in splits or stats is None:
+            geo.update(_part_targets(root, rs, targets, predict_z,
+                                     cache / f"targets_{version}_{s}.pt" if cache else None))
+    if stats is None:
+        toks = np.concatenate([np.asarray(r.tokens, np.float64) for r in recs["train"]])
+        std = toks.std(0)
+        stats = {"tok_mean": toks.mean(0).astype(np.float32),
+                 "tok_std": np.maximum(std, 1e-3).astype(np.float32),
+                 "z_mean": None, "z_std": None}
+        if predict_z:
+            zs = np.concatenate([geo[r.id] for r in recs["train"]])
+            stats["z_mean"] = zs.mean(0).astype(np.float32)
+            stats["z_std"] = np.maximum(zs.std(0), 1e-3).astype(np.float32)
+    # c_s of every (category, label) pair; the table decodes labels at generation
+    pairs = sorted({(r.category, lab) for s in recs for r in recs[s] for lab in r.labels})
+    cs_new = targets.semantic_condition([semantic_text(c, l) for c, l in pairs])
+    cs_of = {p: cs_new[i].numpy().astype(np.float32) for i, p in enumerate(pairs)}
+    if label_table is None:
+        train_pairs = sorted({(r.category, lab) for r in recs["train"] for lab in r.labels})
+        label_table = {"categories": [c for c, _ in train_pairs],
+                       "labels": [l for _, l in train_pairs],
+                       "cs": np.stack([cs_of[p] for p in train_pairs])}
+    items = {}
+    for s in splits:
+        out = []
+        for r in recs[s]:
+            g = geo[r.id]
+            if predict_z:
+                g = (g - stats["z_mean"]) / stats["z_std"]
+            cs = np.stack([cs_of[(r.category, lab)] for lab in r.labels])
+            out.append(make_item(r, stats["tok_mean"], stats["tok_std"], cs, g))
+        items[s] = out
+    geo_shape = tuple(next(iter(geo.values())).shape[1:])
+    return PreparedData(items, stats, label_table, geo_shape, version,
+                        {s: recs[s] for s in splits})
+
+
+def all_samples(items: list[TreeItem]) -> list[tuple[int, int]]:
+    return [(i, k) for i, it in enumerate(items) for k in range(it.num_rounds)]
+
+
+def make_batch(items: list[TreeItem], pairs: list[tuple[int, int]], geo_shape, text_cache: TextCache,
+               rng: np.random.Generator):
+    samples = [round_sample(items[i], k) for i, k in pairs]
+    batch, targets = collate(samples, geo_shape)
+    texts = pick_texts([items[i] for i, _ in pairs], rng)
+    cond, cmask = text_cache.batch(texts)
+    return batch, targets, cond, cmask
+
+
+def lr_at(step: int, tc: TrainConfig) -> float:
+    if step < tc.warmup_steps:
+        return tc.lr * (step + 1) / tc.warmup_steps
+    prog = min(1.0, (step - tc.warmup_steps) / max(1, tc.max_steps - tc.warmup_steps))
+    return tc.lr * (0.1 + 0.9 * 0.5 * (1 + math.cos(math.pi * prog)))
+
+
+@dataclass
+class RunConfig:
+    data: str
+    out: str
+    net: ArticulationConfig
+    train: TrainConfig
+    targets: object = None            # a targets provider (PriorTargets / StandInTargets)
+    resume: bool = False
+    ablation: str = "none"
+    command: str = ""
+    progress: bool = True
+
+
+@torch.no_grad()
+def evaluate_loss(net: ArticulationTransformer, items, geo_shape, text_cache, tc: TrainConfig,
+                  n_batches: int, seed: int = 1234) -> dict:
+    """Mean loss terms over a fixed random subset of decoding rounds (no dropout)."""
+    was = net.training
+    net.eval()
+    rng = np.random.default_rng(seed)
+    pairs = all_samples(items)
+    order = rng.permutation(len(pairs))
+    sums: dict[str, float] = {}
+    nb = 0
+    for b in range(n_batches):
+        sel = order[b * tc.batch_size:(b + 1) * tc.batch_size]
+        if len(sel) == 0:
+            break
+        batch, targets, cond, cmask = make_batch(items, [pairs[j] for j in sel], geo_shape,
+                                                 text_cache, rng)
+        _, L = net(batch, cond, cmask, "text", targets=targets, weights=asdict(tc))
+        for k, v in L.items():
+            sums[k] = sums.get(k, 0.0) + float(v)
+        nb += 1
+    net.train(was)
+    return {k: v / max(nb, 1) for k, v in sums.items()}
+
+
+def train(rc: RunConfig) -> Path:
+    """Train (or resume) a run in ``rc.out``; writes last.pt (resumable) and transformer.pt."""
+    tc, cfg = rc.train, rc.net
+    torch.set_num_threads(max(1, tc.threads))
+    out = Path(rc.out)
+    out.mkdir(parents=True, exist_ok=True)
+    t_start = time.time()
+    tg = rc.targets
+    cfg.cs_dim = int(tg.cs_dim)
+    if cfg.predict_z:
+        cfg.z_dim = int(tg.z_dim)
+    elif cfg.num_codebooks != 1:
+        cfg.num_codebooks, cfg.codebook_size = int(tg.num_codebooks), int(tg.codebook_size)
+    else:   # one_codebook ablation: see _CodebookView
+        cfg.codebook_size = int(tg.num_codebooks) * int(tg.codebook_size)
+    data = prepare_data(rc.data, _CodebookView(tg, cfg), predict_z=cfg.predict_z,
+                        cache_dir=str(out / "cache"))
+    tr, va = data.items["train"], data.items.get("val") or []
+    log.info("data %s: %d train / %d val objects, %d train rounds", data.data_version,
+             len(tr), len(va), len(all_samples(tr)))
+    text_cache = TextCache.load(out / "cache" / "texts.pt", tc.text_encoder)
+    n_before = len(text_cache.index)
+    text_cache.add([t for it in tr + va for g in it.texts for t in g], tc.max_text_tokens,
+                   progress=rc.progress)
+    if len(text_cache.index) != n_before:
+        text_cache.save(out / "cache" / "texts.pt")
+    if text_cache.dim != cfg.cond_dims.get("text"):
+        cfg.cond_dims["text"] = text_cache.dim
+    torch.manual_seed(tc.seed)
+    net = ArticulationTransformer(cfg)
+    opt = torch.optim.AdamW(net.parameters(), lr=tc.lr, weight_decay=tc.weight_decay,
+                            betas=(0.9, 0.98))
+    step, elapsed_before, history = 0, 0.0, []
+    rng = np.random.default_rng(tc.seed)
+    last = out / "last.pt"
+    if rc.resume and last.exists():
+        ck = read_checkpoint(last)
+        if ck["config"] != asdict(cfg):
+            raise ValueError(f"{last} was trained with another config; drop --resume or use "
+                             f"another --out")
+        net.load_state_dict(ck["state_dict"])
+        opt.load_state_dict(ck["optimizer"])
+        step = int(ck["step"])
+        elapsed_before = float(ck.get("elapsed", 0.0))
+        history = list(ck.get("history", []))
+        rng = np.random.default_rng(tc.seed + step)
+        log.info("resumed %s at step %d", last, step)
+    common = dict(stats=data.stats, label_table=data.label_table, text_encoder=tc.text_encoder,
+                  data_version=data.data_version, seed=tc.seed, command=rc.command,
+                  train_config=asdict(tc))
+
+    def save(path: Path, final: bool = False) -> None:
+        extra = {"ablation": rc.ablation, "targets": getattr(tg, "name", "?"),
+                 "elapsed": elapsed_before + time.time() - t_loop, "history": history}
+        if not final:
+            extra["optimizer"] = opt.state_dict()
+        save_checkpoint(path, net, step=step, extra=extra, **common)
+
+    pairs = all_samples(tr)
+    perm, cursor = rng.permutation(len(pairs)), 0
+    net.train()
+    t_loop = time.time()
+    budget = tc.max_minutes * 60.0
+    bar = None
+    if rc.progress:
+        from tqdm import tqdm
+        bar = tqdm(total=tc.max_steps, initial=step, desc="train transformer", unit="step")
+    run = {}
+    while step < tc.max_steps:
+        if budget and elapsed_before + time.time() - t_loop > budget:
+            log.info("wall-clock budget of %.1f min reached at step %d", tc.max_minutes, step)
+            break
+        if cursor + tc.batch_size > len(perm):
+            perm, cursor = rng.permutation(len(pairs)), 0
+        sel = perm[cursor:cursor + tc.batch_size]
+        cursor += tc.batch_size
+        batch, targets, cond, cmask = make_batch(tr, [pairs[j] for j in sel], data.geo_shape,
+                                                 text_cache, rng)
+        drop = torch.from_numpy(rng.random(len(sel)) < tc.cond_dropout)
+        for g in opt.param_groups:
+            g["lr"] = lr_at(step, tc)
+        _, L = net(batch, cond, cmask, "text", drop=drop, targets=targets, weights=asdict(tc))
+        opt.zero_grad(set_to_none=True)
+        L["total"].backward()
+        torch.nn.utils.clip_grad_norm_(net.parameters(), tc.grad_clip)
+        opt.step()
+        step += 1
+        for k, v in L.items():
+            v = float(v.detach())
+            run[k] = 0.98 * run.get(k, v) + 0.02 * v
+        if bar is not None:
+            bar.update(1)
+            bar.set_postfix(loss=f"{run['total']:.3f}", end=f"{run['end']:.3f}",
+                            jt=f"{run['jt']:.3f}")
+        if step % tc.val_every == 0 or step == tc.max_steps:
+            rec = {"step": step, "train": dict(run),
+                   "time_min": (elapsed_before + time.time() - t_loop) / 60}
+            if va:
+                rec["val"] = evaluate_loss(net, va, data.geo_shape, text_cache, tc, tc.val_batches)
+            history.append(rec)
+            log.info("step %d train %.4f val %s", step, run["total"],
+                     f"{rec['val']['total']:.4f}" if va else "-")
+            if bar is not None:
+                bar.write(f"step {step}: train {run['total']:.4f}"
+                          + (f"  val {rec['val']['total']:.4f}" if va else ""))
+        if step % tc.ckpt_every == 0:
+            save(last)
+    if bar is not None:
+        bar.close()
+    final = {"step": step, "train": dict(run),
+             "time_min": (elapsed_before + time.time() - t_loop) / 60}
+    if va:
+        final["val"] = evaluate_loss(net, va, data.geo_shape, text_cache, tc, tc.val_batches)
+    history.append(final)
+    save(last)
+    save(out / "transformer.pt", final=True)
+    (out / "history.json").write_text(json.dumps(history, indent=1))
+    log.info("done: %d steps in %.1f min", step, (time.time() - t_start) / 60)
+    return out / "transformer.pt"
+
+
+class _CodebookView:
+    """Targets seen through the network's codebook layout. For the one_codebook ablation
+    with a prior of C > 1 codebooks, P_gt becomes one categorical over all C*N codes (the
+    C distributions concatenated and renormalised); a prior trained with a single codebook
+    is used as it is."""
+
+    def __init__(self, targets, cfg: ArticulationConfig):
+        self.t, self.cfg = targets, cfg
+        self.name = getattr(targets, "name", "targets")
+        self.prior_path = getattr(targets, "prior_path", "")
+        self.sdf_path = getattr(targets, "sdf_path", "")
+        self.cs_dim = targets.cs_dim
+
+    def part_latents(self, points):
+        return self.t.part_latents(points)
+
+    def code_distribution(self, z):
+        P = self.t.code_distribution(z)                       # (K, C, N)
+        if self.cfg.num_codebooks == 1 and P.shape[1] != 1:
+            K = P.shape[0]
+            P = (P / P.shape[1]).reshape(K, 1, -1)            # (K, 1, C*N)
+        return P
+
+    def semantic_condition(self, texts):
+        return self.t.semantic_condition(texts)
