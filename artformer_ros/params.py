@@ -1,0 +1,138 @@
+"""The node's parameters: one table (name, default, description, range, read-only), the
+validation of values, and the conversion into the core ``GenerationConfig`` (once, at start).
+
+Kept apart from the node so that validation is tested without rclpy; the node turns each
+``ParamSpec`` into a ``ParameterDescriptor`` with the same description and range.
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from typing import Any, Optional
+
+BACKENDS = ("model", "example")
+MESH_FORMATS = ("obj", "stl", "glb")
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    name: str
+    default: Any
+    description: str
+    read_only: bool = False
+    int_range: Optional[tuple[int, int]] = None
+    float_range: Optional[tuple[float, float]] = None
+    choices: Optional[tuple[str, ...]] = None
+
+
+PARAMS: tuple[ParamSpec, ...] = (
+    ParamSpec("backend", "model",
+              "'model': the generation pipeline (model.pipeline); 'example': exports the built-in "
+              "example object for every request (plumbing demos, no model)",
+              read_only=True, choices=BACKENDS),
+    ParamSpec("checkpoint", "",
+              "folder of the stage checkpoints; empty = the shipped model", read_only=True),
+    ParamSpec("output_dir", "~/.ros/artformer_ros/output",
+              "one folder per request is written here (URDF, meshes, metadata)", read_only=True),
+    ParamSpec("resolution", 64, "effective marching-cubes resolution per part",
+              read_only=True, int_range=(8, 512)),
+    ParamSpec("steps", 50, "DDIM sampling steps of the shape prior",
+              read_only=True, int_range=(1, 1000)),
+    ParamSpec("guidance", 1.0, "classifier-free guidance scale of the shape prior (1 = off)",
+              read_only=True, float_range=(0.0, 20.0)),
+    ParamSpec("mesh_format", "obj", "mesh file format of the exported parts",
+              read_only=True, choices=MESH_FORMATS),
+    ParamSpec("device", "cpu", "torch device: cpu, cuda or cuda:N", read_only=True),
+    ParamSpec("threads", 2, "torch CPU threads used by generation",
+              read_only=True, int_range=(1, 256)),
+    ParamSpec("seed", -1, "seed of requests that do not give one; -1 = a fresh random seed "
+              "per request", int_range=(-1, 2**31 - 1)),
+    ParamSpec("samples", 1, "objects generated per request (the first is published on "
+              "robot_description)", int_range=(1, 16)),
+    ParamSpec("queue_size", 4, "requests waiting behind the running one; when full a request "
+              "is answered 'rejected'", int_range=(1, 1000)),
+    ParamSpec("retention", 20, "output folders kept under output_dir (oldest deleted first)",
+              int_range=(1, 100000)),
+    ParamSpec("max_text_length", 1000, "longest accepted text request (characters)",
+              int_range=(1, 100000)),
+    ParamSpec("max_image_pixels", 4096 * 4096, "largest accepted image request (height*width)",
+              int_range=(1, 100_000_000)),
+    ParamSpec("shutdown_timeout", 10.0, "seconds a SIGINT/SIGTERM waits for a running "
+              "generation before abandoning it", float_range=(0.0, 3600.0)),
+)
+
+SPECS = {p.name: p for p in PARAMS}
+
+
+def _type_ok(default: Any, value: Any) -> bool:
+    if isinstance(default, bool) or isinstance(value, bool):
+        return isinstance(default, bool) and isinstance(value, bool)
+    if isinstance(default, float):
+        return isinstance(value, (int, float))   # an integer is a fine float
+    return isinstance(value, type(default))
+
+
+def validate(name: str, value: Any) -> Optional[str]:
+    """Reason why ``value`` is not acceptable for parameter ``name`` (None if it is)."""
+    spec = SPECS.get(name)
+    if spec is None:
+        return None  # not ours (e.g. use_sim_time)
+    if not _type_ok(spec.default, value):
+        return f"{name} must be of type {type(spec.default).__name__}, got {value!r}"
+    if spec.int_range and not spec.int_range[0] <= value <= spec.int_range[1]:
+        return f"{name} must be in [{spec.int_range[0]}, {spec.int_range[1]}], got {value}"
+    if spec.float_range and not spec.float_range[0] <= value <= spec.float_range[1]:
+        return f"{name} must be in [{spec.float_range[0]}, {spec.float_range[1]}], got {value}"
+    if spec.choices and value not in spec.choices:
+        return f"{name} must be one of {list(spec.choices)}, got {value!r}"
+    if name == "device":
+        v = value.strip().lower()
+        if not (v == "cpu" or v == "cuda" or (v.startswith("cuda:") and v[5:].isdigit())):
+            return f"device must be 'cpu', 'cuda' or 'cuda:N', got {value!r}"
+    if name == "output_dir" and not str(value).strip():
+        return "output_dir must not be empty"
+    return None
+
+
+@dataclass
+class NodeSettings:
+    """The parameter values the node and its worker read (live ones change at run time)."""
+    backend: str = "model"
+    checkpoint: str = ""
+    output_dir: str = "~/.ros/artformer_ros/output"
+    resolution: int = 64
+    steps: int = 50
+    guidance: float = 1.0
+    mesh_format: str = "obj"
+    device: str = "cpu"
+    threads: int = 2
+    seed: int = -1
+    samples: int = 1
+    queue_size: int = 4
+    retention: int = 20
+    max_text_length: int = 1000
+    max_image_pixels: int = 4096 * 4096
+    shutdown_timeout: float = 10.0
+
+    @classmethod
+    def from_values(cls, values: dict[str, Any]) -> "NodeSettings":
+        for name, value in values.items():
+            reason = validate(name, value)
+            if reason:
+                raise ValueError(reason)
+        known = {k: (float(v) if isinstance(SPECS[k].default, float) else v)
+                 for k, v in values.items() if k in SPECS}
+        return cls(**known)
+
+    @property
+    def output_path(self) -> str:
+        return os.path.abspath(os.path.expanduser(self.output_dir))
+
+    def generation_config(self):
+        """The core config (converted once, when the model is loaded)."""
+        from model.pipeline.api import GenerationConfig
+
+        return GenerationConfig(checkpoint=self.checkpoint or None, resolution=self.resolution,
+                                steps=self.steps, guidance=self.guidance,
+                                mesh_format=self.mesh_format, device=self.device,
+                                threads=self.threads)

@@ -1,0 +1,348 @@
+"""Serving core of the generator node, free of rclpy: background model load, a bounded
+request queue, one worker thread, output folders with retention, clean stop.
+
+Every request gets exactly one answer through ``emit(result, urdf_xml)``: ``result`` is the
+dict sent as JSON on ``generation_result``; ``urdf_xml`` is the URDF text of a successful
+request (the node latches it on ``robot_description``) and None otherwise.
+
+Output folders: ``<output_dir>/<UTC time>_<n>_<request id>/`` holding ``result.json`` and one
+exported object folder per sample, ``sample_<k>/`` (URDF, meshes/, metadata.json). A folder is created with two
+marker files: ``.artformer_output`` (it is ours: only such folders are ever deleted) and
+``.partial`` (removed last, when everything is written). Folders still marked partial are
+not results: they are removed on abandon and at the next start. A shutdown never interrupts
+an export, so after a clean stop no partial folder exists.
+"""
+from __future__ import annotations
+
+import collections
+import json
+import logging
+import os
+import random
+import shutil
+import threading
+import time
+from dataclasses import dataclass, field
+from datetime import datetime, timezone
+from typing import Any, Callable, Optional, Protocol
+
+import numpy as np
+
+from artformer_ros.conversions import SEED_MAX, result_to_json, slug
+from artformer_ros.params import NodeSettings
+
+log = logging.getLogger("artformer_ros.service")
+
+OWNER_MARKER = ".artformer_output"
+PARTIAL_MARKER = ".partial"
+RESULT_FILE = "result.json"
+
+LOADING, READY, FAILED, STOPPING = "loading", "ready", "failed", "stopping"
+
+
+class Backend(Protocol):
+    """What the service needs from a generation backend (see ``artformer_ros.backends``)."""
+    name: str
+
+    def generate(self, *, text: Optional[str], image: Optional[np.ndarray], seed: int,
+                 samples: int) -> list: ...
+
+    def export(self, result: Any, out_dir: str) -> Any: ...
+
+
+@dataclass
+class Job:
+    request_id: str
+    kind: str                              # "text" | "image"
+    text: Optional[str] = None             # the prompt of a text request
+    image: Optional[np.ndarray] = None     # (H, W, 3) uint8 RGB of an image request
+    seed: Optional[int] = None             # None: the node's seed policy
+    received: float = field(default_factory=time.monotonic)
+
+    @property
+    def prompt(self) -> Optional[str]:
+        if self.kind == "image" and self.image is not None:
+            return f"<image {self.image.shape[1]}x{self.image.shape[0]}>"
+        return self.text
+
+
+def answer(job_or_id: Job | str, status: str, message: str, *, kind: str = "text",
+           prompt: Optional[str] = None, **extra: Any) -> dict:
+    """A non-success result (status 'error' or 'rejected') with a message."""
+    if isinstance(job_or_id, Job):
+        rid, kind, prompt = job_or_id.request_id, job_or_id.kind, job_or_id.prompt
+    else:
+        rid = job_or_id
+    return {"id": rid, "status": status, "kind": kind, "prompt": prompt, "message": message,
+            **extra}
+
+
+def _write_atomic(path: str, text: str) -> None:
+    tmp = os.path.join(os.path.dirname(path), f".{os.path.basename(path)}.tmp")
+    try:
+        with open(tmp, "w", encoding="utf-8") as f:
+            f.write(text)
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+
+
+def owned_folders(root: str) -> tuple[list[str], list[str]]:
+    """(complete, partial) output folders under ``root`` that this node wrote, oldest first."""
+    complete, partial = [], []
+    try:
+        names = sorted(os.listdir(root))
+    except FileNotFoundError:
+        return [], []
+    for name in names:
+        path = os.path.join(root, name)
+        if os.path.isdir(path) and os.path.exists(os.path.join(path, OWNER_MARKER)):
+            (partial if os.path.exists(os.path.join(path, PARTIAL_MARKER)) else complete).append(path)
+    return complete, partial
+
+
+class GenerationService:
+    """Bounded queue + one worker in front of a backend; see the module docstring."""
+
+    def __init__(self, settings: NodeSettings, load_backend: Callable[[], Backend],
+                 emit: Callable[[dict, Optional[str]], None],
+                 on_state: Callable[[str, str], None] = lambda state, message: None):
+        self.settings = settings          # live values (seed, samples, queue_size, retention)
+        self._load_backend = load_backend
+        self._emit = emit
+        self._on_state = on_state
+        self._backend: Optional[Backend] = None
+        self._state, self._state_message = LOADING, "loading the model"
+        self._queue: collections.deque[Job] = collections.deque()
+        self._cond = threading.Condition()
+        self._export_lock = threading.Lock()
+        self._busy: Optional[Job] = None
+        self._folder_counter = 0
+        self._root = settings.output_path
+        self._threads: list[threading.Thread] = []
+        self._rng = random.Random()
+
+    # -- lifecycle ------------------------------------------------------------------------
+    @property
+    def state(self) -> str:
+        return self._state
+
+    @property
+    def state_message(self) -> str:
+        return self._state_message
+
+    @property
+    def backend(self) -> Optional[Backend]:
+        return self._backend
+
+    def _set_state(self, state: str, message: str) -> None:
+        with self._cond:
+            if self._state == STOPPING and state != STOPPING:
+                return
+            self._state, self._state_message = state, message
+            self._cond.notify_all()
+        log.info("state %s: %s", state, message)
+        self._on_state(state, message)
+
+    def start(self) -> None:
+        os.makedirs(self._root, exist_ok=True)
+        _, stale = owned_folders(self._root)
+        for path in stale:   # left by a crash or a kill -9 in the middle of an export
+            log.warning("removing incomplete output folder %s", path)
+            shutil.rmtree(path, ignore_errors=True)
+        self._on_state(LOADING, self._state_message)
+        for target, name in ((self._load, "artformer-load"), (self._work, "artformer-worker")):
+            t = threading.Thread(target=target, name=name, daemon=True)
+            t.start()
+            self._threads.append(t)
+
+    def _load(self) -> None:
+        t0 = time.monotonic()
+        try:
+            backend = self._load_backend()
+        except Exception as err:  # the node keeps answering: every request gets this reason
+            log.error("model failed to load: %s: %s", type(err).__name__, err)
+            self._set_state(FAILED, f"model failed to load: {type(err).__name__}: {err}")
+            return
+        self._backend = backend
+        self._set_state(READY, f"backend '{backend.name}' ready (loaded in "
+                               f"{time.monotonic() - t0:.1f} s)")
+
+    def wait_ready(self, timeout: Optional[float] = None) -> bool:
+        with self._cond:
+            self._cond.wait_for(lambda: self._state != LOADING, timeout)
+            return self._state == READY
+
+    def stop(self, timeout: Optional[float] = None) -> bool:
+        """Stop accepting, answer the queued requests 'rejected', let a running export finish
+        and abandon a running generation after ``timeout`` s (settings.shutdown_timeout).
+        Returns True when the worker ended (False: it is still inside the backend's generate
+        and its result will be discarded)."""
+        timeout = self.settings.shutdown_timeout if timeout is None else timeout
+        with self._cond:
+            was_stopping = self._state == STOPPING
+            self._state, self._state_message = STOPPING, "shutting down"
+            drained = list(self._queue)
+            self._queue.clear()
+            self._cond.notify_all()
+        worker = self._threads[1] if len(self._threads) > 1 else None
+        if was_stopping:
+            return worker is None or not worker.is_alive()
+        self._on_state(STOPPING, "shutting down")
+        for job in drained:
+            self._safe_emit(answer(job, "rejected", "rejected: node shutting down"), None)
+        if worker is not None:
+            worker.join(timeout)
+        # Whatever the worker does now, it cannot start an export; an export under way ends.
+        if not self._export_lock.acquire(timeout=max(60.0, timeout)):
+            log.warning("an export is still running; its folder stays marked partial and is "
+                        "removed at the next start")
+            return False
+        return worker is None or not worker.is_alive()
+
+    # -- requests -------------------------------------------------------------------------
+    def queue_length(self) -> int:
+        with self._cond:
+            return len(self._queue)
+
+    def submit(self, job: Job) -> bool:
+        """Queue a job; answer it at once (and return False) if it cannot be queued."""
+        with self._cond:
+            state, message = self._state, self._state_message
+            if state == READY:
+                limit = self.settings.queue_size
+                if len(self._queue) >= limit:
+                    result = answer(job, "rejected", f"rejected: queue full ({limit} requests "
+                                                     "waiting); try again later")
+                else:
+                    self._queue.append(job)
+                    self._cond.notify_all()
+                    return True
+            elif state == LOADING:
+                result = answer(job, "error", "model still loading; try again when the status "
+                                              "topic says 'ready'")
+            elif state == FAILED:
+                result = answer(job, "error", message)
+            else:
+                result = answer(job, "rejected", "rejected: node shutting down")
+        self._safe_emit(result, None)
+        return False
+
+    def _safe_emit(self, result: dict, urdf_xml: Optional[str]) -> None:
+        try:
+            self._emit(result, urdf_xml)
+        except Exception as err:  # a closed ROS context during shutdown must not kill the worker
+            log.warning("could not publish the result of %s: %s", result.get("id"), err)
+
+    # -- worker ---------------------------------------------------------------------------
+    def _work(self) -> None:
+        with self._cond:
+            self._cond.wait_for(lambda: self._state != LOADING)
+        while True:
+            with self._cond:
+                self._cond.wait_for(lambda: self._queue or self._state == STOPPING)
+                if self._state == STOPPING:
+                    return
+                job = self._queue.popleft()
+                self._busy = job
+            try:
+                result, urdf = self._run(job)
+            except Exception as err:  # never let one request end the worker
+                log.exception("request %s failed", job.request_id)
+                result, urdf = answer(job, "error", f"internal error: {type(err).__name__}: "
+                                                    f"{err}"), None
+            finally:
+                with self._cond:
+                    self._busy = None
+            self._safe_emit(result, urdf)
+
+    def _seed_for(self, job: Job) -> int:
+        if job.seed is not None:
+            return job.seed
+        if self.settings.seed >= 0:
+            return self.settings.seed
+        return self._rng.randint(0, SEED_MAX)
+
+    def _run(self, job: Job) -> tuple[dict, Optional[str]]:
+        from model.pipeline.api import GenerationError  # lazy: keeps the node start light
+
+        t_start = time.monotonic()
+        seed, samples = self._seed_for(job), self.settings.samples
+        base = {"seed": seed, "backend": self._backend.name}
+        try:
+            outs = self._backend.generate(text=job.text, image=job.image, seed=seed,
+                                          samples=samples)
+        except GenerationError as err:
+            return answer(job, "error", f"generation failed: {err}", **base), None
+        t_gen = time.monotonic()
+        if not outs:
+            return answer(job, "error", "generation failed: the model returned no object",
+                          **base), None
+        with self._export_lock:
+            if self._state == STOPPING:
+                return answer(job, "rejected", "abandoned: node shutting down before the "
+                                               "result was written", **base), None
+            folder = self._new_folder(job)
+            try:
+                exports = []
+                for k, out in enumerate(outs):
+                    # the exporter replaces its target folder atomically: give it a subfolder
+                    target = os.path.join(folder, f"sample_{k}")
+                    exports.append(self._backend.export(out, target))
+                t_exp = time.monotonic()
+                result = self._done_result(job, seed, folder, outs, exports,
+                                           {"queue_wait": t_start - job.received,
+                                            "generate": t_gen - t_start,
+                                            "export": t_exp - t_gen,
+                                            "total": t_exp - job.received})
+                _write_atomic(os.path.join(folder, RESULT_FILE), result_to_json(result))
+                with open(exports[0].urdf_path, encoding="utf-8") as f:
+                    urdf = f.read()
+                os.unlink(os.path.join(folder, PARTIAL_MARKER))
+            except GenerationError as err:
+                shutil.rmtree(folder, ignore_errors=True)
+                return answer(job, "error", f"generation failed: {err}", **base), None
+            except Exception:
+                shutil.rmtree(folder, ignore_errors=True)
+                raise
+            self._apply_retention()
+        return result, urdf
+
+    def _new_folder(self, job: Job) -> str:
+        self._folder_counter += 1
+        stamp = datetime.now(timezone.utc).strftime("%Y%m%dT%H%M%S.%f")[:-3]
+        path = os.path.join(self._root, f"{stamp}Z_{self._folder_counter:05d}_"
+                                        f"{slug(job.request_id)}")
+        os.makedirs(self._root, exist_ok=True)
+        os.makedirs(path)
+        open(os.path.join(path, PARTIAL_MARKER), "w").close()
+        with open(os.path.join(path, OWNER_MARKER), "w", encoding="utf-8") as f:
+            json.dump({"id": job.request_id}, f)
+        return path
+
+    def _apply_retention(self) -> None:
+        complete, _ = owned_folders(self._root)
+        for path in complete[:max(0, len(complete) - self.settings.retention)]:
+            log.info("retention: removing %s", path)
+            shutil.rmtree(path, ignore_errors=True)
+
+    def _done_result(self, job: Job, seed: int, folder: str, outs: list, exports: list,
+                     timings: dict) -> dict:
+        samples = []
+        for out, exp in zip(outs, exports):
+            samples.append({"seed": getattr(out, "seed", seed), "output_dir": exp.out_dir,
+                            "urdf_path": exp.urdf_path, "mesh_paths": dict(exp.mesh_paths),
+                            "metadata_path": exp.metadata_path,
+                            "preview_path": exp.preview_path,
+                            "stage_timings": dict(getattr(out, "timings", {}) or {})})
+        first = samples[0]
+        return {"id": job.request_id, "status": "done", "kind": job.kind, "prompt": job.prompt,
+                "seed": seed, "backend": self._backend.name, "message": "ok",
+                "output_dir": folder, "urdf_path": first["urdf_path"],
+                "mesh_paths": first["mesh_paths"], "metadata_path": first["metadata_path"],
+                "preview_path": first["preview_path"],
+                "timings": {**timings, "stages": first["stage_timings"]},
+                "samples": samples}
