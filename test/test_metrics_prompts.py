@@ -1,0 +1,104 @@
+"""Free-form prompt parser and the alignment check."""
+from pathlib import Path
+
+import pytest
+
+from model.core import ArticulatedObject, Joint, JointType, Part
+from model.metrics.alignment import (GeneratedStructure, alignment_of, check_alignment,
+                                     summarise)
+from model.metrics.prompt_parse import parse_prompt
+
+CASES = [
+    # (prompt, category, exact counts, lower bounds, joint types)
+    ("A dresser with three sliding drawers, each with a handle",
+     "StorageFurniture", {"drawer": 3, "handle": 3}, {}, {"drawer": ["prismatic"]}),
+    ("A tall wardrobe with a left door and a right door, both hinged.",
+     "StorageFurniture", {"door": 2}, {}, {"door": ["revolute"]}),
+    ("two doors, a left door and a right door", None, {"door": 2}, {}, {}),
+    ("two drawers on the left and a drawer on the right", None, {"drawer": 3}, {}, {}),
+    ("a three-drawer chest of drawers with no handles",
+     "StorageFurniture", {"drawer": 3, "handle": 0}, {}, {}),
+    ("A kitchen cabinet. It has two doors. The doors swing open. Below them are three drawers "
+     "that pull out, and each drawer has a small knob.", "StorageFurniture",
+     {"door": 2, "drawer": 3, "knob": 3}, {}, {"door": ["revolute"], "drawer": ["prismatic"]}),
+    ("an oven with a door that drops down and 4 knobs", "Oven", {"door": 1, "knob": 4}, {},
+     {"door": ["revolute"]}),
+    ("A kitchen stove with a glass door. It has three control knobs that turn.", "Oven",
+     {"door": 1, "knob": 3}, {}, {"knob": ["continuous", "revolute"]}),
+    ("a safe with a keypad of buttons and a door hinged on the left", "Safe",
+     {"door": 1}, {"button": 2}, {"door": ["revolute"]}),
+    ("a compact safe with a combination dial that spins freely", "Safe", {"dial": 1}, {},
+     {"dial": ["continuous"]}),
+    ("a top-loading washer whose lid is hinged at the back", "WashingMachine", {},
+     {"lid": 1}, {"lid": ["revolute"]}),
+    ("laundry machine with a porthole door, a program dial and three push buttons",
+     "WashingMachine", {"door": 1, "dial": 1, "button": 3}, {}, {}),
+    ("a bottle with a cap that twists off", "Bottle", {"cap": 1}, {}, {"cap": ["screw"]}),
+    ("a thumb drive with a protective cap that slides off", "USB", {"cap": 1}, {},
+     {"cap": ["prismatic"]}),
+    ("a memory stick with a swivel cap", "USB", {"cap": 1}, {}, {"cap": ["revolute"]}),
+    ("a nightstand with two pairs of doors", "StorageFurniture", {"door": 4}, {}, {}),
+    ("a cupboard with a handle on every door and two doors", "StorageFurniture",
+     {"handle": 2, "door": 2}, {}, {}),
+    ("one knob per drawer and three drawers", None, {"knob": 3, "drawer": 3}, {}, {}),
+    ("two doors and each drawer has a knob", None, {"door": 2}, {"drawer": 1, "knob": 1}, {}),
+    ("a cabinet with drawers", "StorageFurniture", {}, {"drawer": 2}, {}),
+    ("kitchen cupboard: two swinging doors, no drawers", "StorageFurniture",
+     {"door": 2, "drawer": 0}, {}, {"door": ["revolute"]}),
+]
+
+
+@pytest.mark.parametrize("prompt,category,counts,lower,joints", CASES)
+def test_parse_free_form(prompt, category, counts, lower, joints):
+    e = parse_prompt(prompt)
+    assert e.category == category
+    assert e.counts == counts
+    assert e.min_counts == lower
+    assert e.joint_types == joints
+
+
+def test_shipped_free_form_prompts_all_parse_to_something():
+    path = Path(__file__).resolve().parents[1] / "model" / "metrics" / "prompts_freeform.txt"
+    prompts = [l.strip() for l in path.read_text().splitlines()
+               if l.strip() and not l.startswith("#")]
+    assert len(prompts) >= 30
+    cats = set()
+    for p in prompts:
+        e = parse_prompt(p)
+        assert e.category is not None, p
+        assert e.counts or e.min_counts, p
+        cats.add(e.category)
+    assert len(cats) == 6
+
+
+def _cabinet(n_drawers: int, door_joint=JointType.REVOLUTE, category="StorageFurniture"):
+    parts = [Part("body", "body", -1)]
+    for i in range(n_drawers):
+        parts.append(Part(f"drawer_{i}", "drawer", 0,
+                          joint=Joint(JointType.PRISMATIC, [0.3, 0, 0.2 * i], [1, 0, 0], (0, 0.3))))
+    parts.append(Part("door_0", "door", 0,
+                      joint=Joint(door_joint, [0.3, 0.3, 0], [0, 0, 1] if door_joint != JointType.PRISMATIC
+                                  else [0, 1, 0], (0, 0.3) if door_joint == JointType.PRISMATIC
+                                  else (0, 0), (0, 1.5) if door_joint == JointType.REVOLUTE else (0, 0))))
+    return ArticulatedObject(parts, category=category).validate()
+
+
+def test_alignment_pass_and_fail():
+    prompt = "a storage cabinet with two sliding drawers and a hinged door"
+    assert alignment_of(prompt, _cabinet(2)).aligned
+    r = alignment_of(prompt, _cabinet(3))
+    assert not r.aligned and r.counts_ok is False and r.joints_ok is True
+    r = alignment_of(prompt, _cabinet(2, door_joint=JointType.PRISMATIC))
+    assert not r.aligned and r.joints_ok is False and r.counts_ok is True
+    r = alignment_of(prompt, _cabinet(2, category="Safe"))
+    assert not r.aligned and r.category_ok is False
+
+
+def test_alignment_lower_bounds_and_unchecked():
+    got = GeneratedStructure.from_object(_cabinet(3))
+    assert check_alignment(parse_prompt("a cabinet with drawers"), got).aligned
+    assert not check_alignment(parse_prompt("a cabinet with drawers and no doors"), got).aligned
+    empty = check_alignment(parse_prompt("something nice"), got)
+    assert not empty.checked and not empty.aligned
+    s = summarise([check_alignment(parse_prompt("a cabinet with drawers"), got), empty])
+    assert s["alignment"] == 1.0 and s["n_checked"] == 1 and s["n_prompts"] == 2
