@@ -1,0 +1,361 @@
+"""Load a URDF in real consumers (yourdfpy, pybullet, MuJoCo), move every joint across its
+range, and compare link poses with our own forward kinematics.
+
+    report = check_urdf("out/cabinet/example_cabinet.urdf", obj)
+    report.ok                      # every simulator loaded, every joint moved, poses agree
+    report.sims["mujoco"].max_position_error
+
+Poses are compared at the openness ratios 0, 0.5, 1 and with each joint alone at its lower
+and upper limit. ``obj`` must be the object the URDF was exported from (link and joint names
+follow ``model.export.urdf``); without it only loading and joint motion are checked.
+
+MuJoCo reads the ``<mujoco><compiler meshdir=... strippath=.../></mujoco>`` element our
+exporter writes into the URDF. A URDF without that element (a foreign file) is given to
+MuJoCo and pybullet as a temporary copy whose mesh paths are resolved to absolute paths.
+"""
+from __future__ import annotations
+
+import logging
+import math
+import os
+import tempfile
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Callable, Optional
+
+import numpy as np
+
+log = logging.getLogger(__name__)
+
+SIMULATORS = ("yourdfpy", "pybullet", "mujoco")
+POSE_TOL = 1e-4          # metres / radians
+MOVE_TOL = 1e-6
+
+
+@dataclass
+class SimResult:
+    simulator: str
+    loaded: bool = False
+    joints_movable: bool = False
+    num_joints: int = 0                     # movable (non-fixed) joints found
+    max_position_error: Optional[float] = None   # metres, vs our FK (None: not compared)
+    max_rotation_error: Optional[float] = None   # radians
+    seconds: float = 0.0
+    error: str = ""
+
+    @property
+    def ok(self) -> bool:
+        pose_ok = (self.max_position_error is None
+                   or (self.max_position_error <= POSE_TOL and self.max_rotation_error <= POSE_TOL))
+        return self.loaded and self.joints_movable and pose_ok and not self.error
+
+
+@dataclass
+class SimReport:
+    path: str
+    sims: dict[str, SimResult] = field(default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        return bool(self.sims) and all(r.ok for r in self.sims.values())
+
+    @property
+    def max_pose_error(self) -> Optional[float]:
+        errs = [r.max_position_error for r in self.sims.values() if r.max_position_error is not None]
+        return max(errs) if errs else None
+
+    def to_dict(self) -> dict:
+        return {"path": self.path, "ok": self.ok,
+                "sims": {k: {**asdict(v), "ok": v.ok} for k, v in self.sims.items()}}
+
+    def summary(self) -> str:
+        rows = []
+        for k, r in self.sims.items():
+            err = "" if r.max_position_error is None else \
+                f" pose err {r.max_position_error:.2e} m / {r.max_rotation_error:.2e} rad"
+            rows.append(f"{k}: {'ok' if r.ok else 'FAIL'} loaded={r.loaded} "
+                        f"joints={r.num_joints} movable={r.joints_movable}{err}"
+                        f"{' error: ' + r.error if r.error else ''} ({r.seconds:.2f} s)")
+        return "\n".join(rows)
+
+
+# -- the joint set to test -------------------------------------------------------------------
+
+
+@dataclass
+class _UJoint:
+    name: str
+    type: str
+    lower: float
+    upper: float
+    child: str
+
+
+def _urdf_joints(path: Path) -> list[_UJoint]:
+    from lxml import etree
+    root = etree.parse(str(path)).getroot()
+    out = []
+    for j in root.findall("joint"):
+        t = j.get("type")
+        lim = j.find("limit")
+        lo = float(lim.get("lower", 0.0)) if lim is not None else 0.0
+        hi = float(lim.get("upper", 0.0)) if lim is not None else 0.0
+        if t == "continuous":
+            lo, hi = -math.pi, math.pi
+        out.append(_UJoint(j.get("name"), t, lo, hi, j.find("child").get("link")))
+    return out
+
+
+def _poses_to_test(obj, joints: list[_UJoint]):
+    """[(urdf joint values, expected link frames or None)]: ratios 0/0.5/1 and each joint
+    alone at each limit."""
+    moving = [j for j in joints if j.type in ("revolute", "prismatic", "continuous")]
+    cases = []
+    if obj is None:
+        for r in (0.0, 0.5, 1.0):
+            cases.append(({j.name: j.lower + r * (j.upper - j.lower) for j in moving}, None))
+        for j in moving:
+            for v in (j.lower, j.upper):
+                cases.append(({j.name: v}, None))
+        return cases
+    from model.core.objects import JointType
+    from .urdf import JOINT_SUFFIX, SLIDE_SUFFIX, posed_link_frames
+
+    def urdf_values(tr: dict) -> dict:
+        vals = {}
+        for p in obj.parts:
+            if p.parent < 0 or p.joint.type == JointType.FIXED:
+                continue
+            t, r = tr.get(p.name, (0.0, 0.0))
+            if p.joint.type == JointType.SCREW:
+                vals[p.name + SLIDE_SUFFIX] = t
+                vals[p.name + JOINT_SUFFIX] = r
+            else:
+                vals[p.name + JOINT_SUFFIX] = t if p.joint.type.translates else r
+        return vals
+
+    for r in (0.0, 0.5, 1.0):
+        tr = obj.joint_values_at(r)
+        cases.append((urdf_values(tr), posed_link_frames(obj, ratio=r)))
+    for p in obj.parts:
+        if p.parent < 0 or p.joint.type == JointType.FIXED:
+            continue
+        for r in (0.0, 1.0):
+            t, rot = p.joint.value_at(r)
+            value = (t, rot) if p.joint.type == JointType.SCREW else (t if p.joint.type.translates else rot)
+            cases.append((urdf_values({p.name: (t, rot)}), posed_link_frames(obj, {p.name: value})))
+    return cases
+
+
+def _pose_errors(got: dict[str, np.ndarray], want: dict[str, np.ndarray]) -> tuple[float, float]:
+    dp, dr = 0.0, 0.0
+    for name, W in want.items():
+        if name not in got:
+            raise KeyError(f"link {name!r} missing in the simulator model")
+        G = got[name]
+        dp = max(dp, float(np.linalg.norm(G[:3, 3] - W[:3, 3])))
+        R = G[:3, :3].T @ W[:3, :3]
+        # atan2 form: acos((tr - 1) / 2) loses all precision near 0 (float32 quaternions).
+        s = np.linalg.norm([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]]) / 2.0
+        dr = max(dr, float(math.atan2(s, (np.trace(R) - 1.0) / 2.0)))
+    return dp, dr
+
+
+def _quat_xyzw_to_matrix(q) -> np.ndarray:
+    x, y, z, w = q
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+
+
+def _pose(pos, R) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, :3] = R
+    T[:3, 3] = pos
+    return T
+
+
+# -- per simulator ----------------------------------------------------------------------------
+# Each backend: load(path) -> handle, returns (set_values(dict) -> link poses dict,
+# joint names -> (lower, upper) as the simulator sees them, close()).
+
+
+def _backend_yourdfpy(path: Path):
+    import yourdfpy
+    urdf = yourdfpy.URDF.load(str(path), build_scene_graph=True, load_meshes=False)
+    movable = {n: (j.limit.lower if j.limit is not None else None,
+                   j.limit.upper if j.limit is not None else None)
+               for n, j in urdf.joint_map.items() if j.type != "fixed"}
+    names = list(urdf.actuated_joint_names)
+    base = urdf.base_link
+
+    def set_values(vals: dict) -> dict:
+        cfg = np.array([vals.get(n, 0.0) for n in names], dtype=np.float64)
+        urdf.update_cfg(cfg)
+        return {ln: urdf.get_transform(ln, base) for ln in urdf.link_map}
+
+    return set_values, movable, lambda: None
+
+
+def _backend_pybullet(path: Path):
+    import pybullet as pb
+    cid = pb.connect(pb.DIRECT)
+    try:
+        body = pb.loadURDF(str(path), useFixedBase=True, physicsClientId=cid)
+    except Exception as e:
+        pb.disconnect(cid)
+        raise RuntimeError(f"pybullet could not load the URDF: {e}") from None
+    n = pb.getNumJoints(body, physicsClientId=cid)
+    index, movable, links = {}, {}, {}
+    for k in range(n):
+        info = pb.getJointInfo(body, k, physicsClientId=cid)
+        jname, jtype = info[1].decode(), info[2]
+        links[info[12].decode()] = k
+        if jtype in (pb.JOINT_REVOLUTE, pb.JOINT_PRISMATIC):
+            index[jname] = k
+            movable[jname] = (info[8], info[9])
+    base_name = pb.getBodyInfo(body, physicsClientId=cid)[0].decode()
+    # getBasePositionAndOrientation gives the base's inertial frame; undo its local offset.
+    dyn = pb.getDynamicsInfo(body, -1, physicsClientId=cid)
+    inv_local = np.linalg.inv(_pose(dyn[3], _quat_xyzw_to_matrix(dyn[4])))
+
+    def set_values(vals: dict) -> dict:
+        for jname, k in index.items():
+            pb.resetJointState(body, k, float(vals.get(jname, 0.0)), physicsClientId=cid)
+        for jname, v in vals.items():
+            got = pb.getJointState(body, index[jname], physicsClientId=cid)[0]
+            if abs(got - v) > 1e-9:
+                raise RuntimeError(f"pybullet joint {jname!r} did not take value {v} (has {got})")
+        pos, orn = pb.getBasePositionAndOrientation(body, physicsClientId=cid)
+        out = {base_name: _pose(pos, _quat_xyzw_to_matrix(orn)) @ inv_local}
+        states = pb.getLinkStates(body, list(links.values()), computeForwardKinematics=True,
+                                  physicsClientId=cid) if links else []
+        for lname, st in zip(links, states):
+            out[lname] = _pose(st[4], _quat_xyzw_to_matrix(st[5]))
+        return out
+
+    return set_values, movable, lambda: pb.disconnect(cid)
+
+
+def _backend_mujoco(path: Path):
+    import mujoco
+    m = mujoco.MjModel.from_xml_path(str(path))
+    d = mujoco.MjData(m)
+    movable, adr = {}, {}
+    for k in range(m.njnt):
+        jname = m.joint(k).name
+        if m.jnt_type[k] in (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE):
+            adr[jname] = int(m.jnt_qposadr[k])
+            lim = m.jnt_range[k] if m.jnt_limited[k] else (-math.pi, math.pi)
+            movable[jname] = (float(lim[0]), float(lim[1]))
+    bodies = {m.body(b).name: b for b in range(1, m.nbody)}
+
+    def set_values(vals: dict) -> dict:
+        d.qpos[:] = 0.0
+        for jname, v in vals.items():
+            d.qpos[adr[jname]] = v
+        mujoco.mj_kinematics(m, d)
+        return {name: _pose(d.xpos[b], d.xmat[b].reshape(3, 3)) for name, b in bodies.items()}
+
+    return set_values, movable, lambda: None
+
+
+_BACKENDS: dict[str, Callable] = {"yourdfpy": _backend_yourdfpy, "pybullet": _backend_pybullet,
+                                  "mujoco": _backend_mujoco}
+
+
+def _has_mujoco_element(path: Path) -> bool:
+    from lxml import etree
+    return etree.parse(str(path)).getroot().find("mujoco") is not None
+
+
+def _resolved_copy(path: Path, tmpdir: str) -> Path:
+    """A copy of a foreign URDF with absolute mesh paths and a MuJoCo compiler element."""
+    from lxml import etree
+    from .importer import resolve_mesh_path
+    tree = etree.parse(str(path))
+    root = tree.getroot()
+    for mesh in root.iter("mesh"):
+        mesh.set("filename", str(resolve_mesh_path(mesh.get("filename", ""), path.parent)))
+    if root.find("mujoco") is None:
+        mj = etree.SubElement(root, "mujoco")
+        etree.SubElement(mj, "compiler", attrib={"strippath": "false", "discardvisual": "false",
+                                                 "fusestatic": "false", "balanceinertia": "true"})
+    out = Path(tmpdir) / path.name
+    tree.write(str(out))
+    return out
+
+
+def check_urdf(path: os.PathLike, obj=None, *, simulators=SIMULATORS) -> SimReport:
+    """Load ``path`` in each simulator, move every joint across its range, compare poses.
+
+    Never raises for a bad URDF: failures are recorded per simulator in the report.
+    """
+    path = Path(path)
+    report = SimReport(path=str(path))
+    try:
+        joints = _urdf_joints(path)
+        cases = _poses_to_test(obj, joints)
+    except Exception as e:
+        for s in simulators:
+            report.sims[s] = SimResult(s, error=f"cannot read URDF: {e}")
+        return report
+    moving = {j.name: j for j in joints if j.type in ("revolute", "prismatic", "continuous")}
+    with tempfile.TemporaryDirectory(prefix="artformer_simcheck_") as tmpdir:
+        foreign_copy = None
+        for sim in simulators:
+            res = SimResult(sim)
+            report.sims[sim] = res
+            t0 = time.perf_counter()
+            close = lambda: None  # noqa: E731
+            try:
+                load_path = path
+                if sim in ("mujoco", "pybullet") and not _has_mujoco_element(path):
+                    if foreign_copy is None:
+                        foreign_copy = _resolved_copy(path, tmpdir)
+                    load_path = foreign_copy
+                set_values, sim_movable, close = _BACKENDS[sim](load_path)
+                res.loaded = True
+                res.num_joints = len(sim_movable)
+                missing = sorted(set(moving) - set(sim_movable))
+                if missing:
+                    raise RuntimeError(f"joints not movable in {sim}: {missing}")
+                for jn, j in moving.items():
+                    lo, hi = sim_movable[jn]
+                    if j.type != "continuous" and lo is not None and (
+                            abs(lo - j.lower) > 1e-6 or abs(hi - j.upper) > 1e-6):
+                        raise RuntimeError(f"{sim} limits of joint {jn!r} are ({lo}, {hi}), "
+                                           f"URDF says ({j.lower}, {j.upper})")
+                for jn, j in moving.items():  # each joint must move its child link
+                    if j.upper - j.lower <= 1e-9:
+                        continue
+                    # Several points of the range: a revolute over whole turns (a screw cap)
+                    # is back at its rest pose at its upper limit.
+                    moved = False
+                    for f in (1.0, 0.5, 0.3, 0.1):
+                        v = j.lower + f * (j.upper - j.lower)
+                        posed = set_values({jn: v})
+                        if np.abs(posed[j.child] - set_values({jn: j.lower})[j.child]).max() > MOVE_TOL:
+                            moved = True
+                            break
+                    if not moved:
+                        raise RuntimeError(f"joint {jn!r} does not move link {j.child!r} in {sim}")
+                res.joints_movable = True
+                if obj is not None:
+                    dp = dr = 0.0
+                    for vals, want in cases:
+                        got = set_values(vals)
+                        p, r = _pose_errors(got, want)
+                        dp, dr = max(dp, p), max(dr, r)
+                    res.max_position_error, res.max_rotation_error = dp, dr
+            except Exception as e:  # record and go on with the next simulator
+                res.error = f"{type(e).__name__}: {e}"
+                log.debug("simcheck %s failed on %s", sim, path, exc_info=True)
+            finally:
+                try:
+                    close()
+                except Exception:
+                    pass
+                res.seconds = time.perf_counter() - t0
+    return report
