@@ -10,7 +10,8 @@ from model.imaging.render import render_view, sample_views
 
 def write_prepared(root, objects: dict, splits: dict):
     """A minimal prepared dataset (manifest, records, prepared meshes) of hand-built objects."""
-    from model.data.format import ObjectRecord, atomic_write_json, save_record
+    import trimesh
+    from model.data.format import ObjectRecord, atomic_write_json, save_part_arrays, save_record
     atomic_write_json(root / "manifest.json", {
         "format": 1, "data_version": "test", "source": "example", "seed": 0, "splits": splits,
         "labels": sorted({p.label for o in objects.values() for p in o.parts}),
@@ -24,8 +25,13 @@ def write_prepared(root, objects: dict, splits: dict):
                                            parents=parents.tolist(), joint_types=types.tolist(),
                                            tokens=toks.tolist(), summary=obj.summary()))
             (root / "meshes" / oid).mkdir(parents=True, exist_ok=True)
+            pts = []
             for k, i in enumerate(order):
-                obj.parts[i].mesh.export(root / "meshes" / oid / f"{k}.obj")
+                mesh = obj.parts[i].mesh
+                mesh.export(root / "meshes" / oid / f"{k}.obj")
+                p = np.asarray(trimesh.sample.sample_surface(mesh, 256, seed=k)[0], np.float64)
+                pts.append((p - p.mean(0)) / max(np.ptp(p, axis=0).max(), 1e-6) * 1.9)
+            save_part_arrays(root, oid, points=np.stack(pts).astype(np.float16))
 
 
 @pytest.fixture(scope="module")

@@ -260,10 +260,12 @@ class ImageEncoder(torch.nn.Module):
                 h = block(h)
         return h
 
-    def tail(self, h: torch.Tensor) -> torch.Tensor:
-        """Trunk features → tokens (B, 49, 1280); differentiable when fine-tuning."""
+    def tail(self, h: torch.Tensor, start: int | None = None) -> torch.Tensor:
+        """Features entering block ``start`` (default: the trainable split) → tokens
+        (B, 49, 1280); differentiable in the fine-tuned blocks."""
         net = self.net
-        for block in net._blocks[self.split:]:
+        start = self.split if start is None else start
+        for block in net._blocks[start:]:
             h = block(h)
         h = net._swish(net._bn1(net._conv_head(h)))                    # (B, 1280, 7, 7)
         return h.flatten(2).transpose(1, 2)                           # (B, 49, 1280)

@@ -1,0 +1,99 @@
+"""Cached encoder features of the render set (computed once, reused by every training run).
+
+The frozen EfficientNet-Lite0 trunk up to the input of its last MBConv block is run once over
+every rendered view and stored as fp16 (K views × 192 × 7 × 7 per object, ~19 KB a view).
+Training then runs only the cheap tail (last block + 1×1 head conv, ~50 MFLOP a view) per
+step: frozen (no grad) or lightly fine-tuned. That keeps both options affordable on a CPU.
+
+    OUT/features/trunk<split>.pt   {"ids": [...], "feats": (N, K, C, 7, 7) fp16,
+                                    "split": int, "render_version": int, "weights": str}
+"""
+from __future__ import annotations
+
+import logging
+import os
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from model.data.format import atomic_write_bytes
+
+from .renders import load_render_manifest, rendered_ids, view_paths
+
+log = logging.getLogger(__name__)
+
+CACHE_SPLIT = 15        # trunk = stem + blocks 0..14; the cache serves trainable_blocks <= 1
+
+
+def cache_path(render_root: os.PathLike, split: int = CACHE_SPLIT) -> Path:
+    return Path(render_root) / "features" / f"trunk{split}.pt"
+
+
+def build_feature_cache(render_root: os.PathLike, ids: list[str], *, batch_size: int = 32,
+                        progress: bool = False) -> dict:
+    """Trunk features of every view of ``ids`` (already-cached ids are reused)."""
+    import io
+
+    from model.encoders.image import ImageEncoder, ImageEncoderConfig, preprocess
+    manifest = load_render_manifest(render_root)
+    path = cache_path(render_root)
+    cache = load_feature_cache(render_root) if path.exists() else None
+    if cache is not None and cache.get("render_version") != manifest["render_version"]:
+        cache = None
+    have = {} if cache is None else {i: k for k, i in enumerate(cache["ids"])}
+    ids = rendered_ids(render_root, ids)
+    todo = [i for i in ids if i not in have]
+    if not todo and cache is not None:
+        return cache
+    enc = ImageEncoder(ImageEncoderConfig(trainable_blocks=16 - CACHE_SPLIT))
+    views = int(manifest["views"])
+    new = np.zeros((len(todo), views, 192, 7, 7), np.float16)
+    flat = [(n, k, p) for n, oid in enumerate(todo) for k, p in enumerate(view_paths(render_root, oid))]
+    rng = range(0, len(flat), batch_size)
+    if progress:
+        from tqdm import tqdm
+        rng = tqdm(rng, desc="encode renders", unit="batch")
+    for s in rng:
+        chunk = flat[s:s + batch_size]
+        x = preprocess([str(p) for _, _, p in chunk])                  # (b, 3, 224, 224)
+        h = enc.trunk(x).numpy().astype(np.float16)                    # (b, 192, 7, 7)
+        for j, (n, k, _) in enumerate(chunk):
+            new[n, k] = h[j]
+    if cache is not None:
+        all_ids = list(cache["ids"]) + todo
+        feats = np.concatenate([cache["feats"].numpy(), new], 0)
+    else:
+        all_ids, feats = todo, new
+    out = {"ids": all_ids, "feats": torch.from_numpy(feats), "split": CACHE_SPLIT,
+           "render_version": manifest["render_version"], "weights": "imagenet"}
+    buf = io.BytesIO()
+    torch.save(out, buf)
+    atomic_write_bytes(path, buf.getvalue())
+    log.info("cached trunk features of %d objects (%d new) -> %s", len(all_ids), len(todo), path)
+    return out
+
+
+def load_feature_cache(render_root: os.PathLike) -> dict:
+    path = cache_path(render_root)
+    if not path.exists():
+        raise FileNotFoundError(f"no feature cache at {path}; `artformer train image` builds it")
+    return torch.load(path, map_location="cpu", weights_only=False)
+
+
+class ViewFeatures:
+    """id → (K, 192, 7, 7) fp16 trunk features of its views."""
+
+    def __init__(self, cache: dict):
+        self.index = {i: n for n, i in enumerate(cache["ids"])}
+        self.feats = cache["feats"]                                    # (N, K, C, 7, 7) fp16
+        self.views = int(self.feats.shape[1])
+        self.split = int(cache.get("split", CACHE_SPLIT))   # first encoder block after the cache
+
+    def __contains__(self, obj_id: str) -> bool:
+        return obj_id in self.index
+
+    def batch(self, ids: list[str], views: list[int]) -> torch.Tensor:
+        """-> (B, 192, 7, 7) float32."""
+        rows = torch.tensor([self.index[i] for i in ids])
+        return self.feats[rows, torch.as_tensor(views)].float()

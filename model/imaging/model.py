@@ -1,0 +1,90 @@
+"""Loading and using an image-conditioned transformer checkpoint (the pipeline's entry point).
+
+    im = load_image_model("model/weights/image_small.pt")   # or None = the shipped file
+    tokens, mask = im.encode("photo.png")                    # (1, 49, 1280), (1, 49)
+    trees = im.decode_image("photo.png", samples=2, seed=0)  # list[DecodedTree]
+    obj = trees[0].to_object()
+
+``im.am`` is a ``model.articulation.ArticulationModel`` (decoding, label table, editing), so
+everything downstream (shape prior, export) is the same as for text.
+"""
+from __future__ import annotations
+
+import logging
+import os
+from pathlib import Path
+from typing import Optional, Union
+
+import torch
+
+from model.encoders.image import ImageEncoder, ImageEncoderConfig, ImageLike, preprocess
+
+log = logging.getLogger(__name__)
+
+SHIPPED = Path(__file__).resolve().parent.parent / "weights" / "image_small.pt"
+
+
+class ImageModelError(RuntimeError):
+    """The file is not an image-conditioned checkpoint (or is missing)."""
+
+
+class ImageArticulationModel:
+    """An articulation model whose condition is an image (EfficientNet-Lite0 tokens)."""
+
+    def __init__(self, am, encoder: ImageEncoder, ckpt: dict):
+        self.am = am
+        self.encoder = encoder.eval()
+        self.meta = {k: ckpt.get(k) for k in ("data_version", "seed", "command", "step",
+                                              "renders", "init", "image_train_config")}
+
+    @torch.inference_mode()
+    def encode(self, images: Union[ImageLike, list]) -> tuple[torch.Tensor, torch.Tensor]:
+        """One image or a list → tokens (B, 49, 1280), mask (B, 49) bool."""
+        x = preprocess(images, self.encoder.config.image_size, self.encoder.config.background)
+        tokens = self.encoder(x)                                        # (B, 49, 1280)
+        return tokens, torch.ones(tokens.shape[:2], dtype=torch.bool)
+
+    @torch.inference_mode()
+    def decode_image(self, image: ImageLike, *, samples: int = 1, seed: int = 0, **kwargs):
+        """One image → ``samples`` decoded trees (kwargs go to ArticulationModel.decode)."""
+        tokens, mask = self.encode(image)
+        return self.am.decode(tokens.expand(samples, -1, -1), mask.expand(samples, -1),
+                              seed=seed, modality="image", **kwargs)
+
+
+def load_image_model(path: Union[str, os.PathLike, None] = None) -> ImageArticulationModel:
+    """The one loader of image checkpoints (``None`` = the shipped model/weights/image_small.pt)."""
+    from model.articulation.checkpoint import CheckpointError, build_network, read_checkpoint
+    from model.articulation.decode import ArticulationModel
+    p = Path(path) if path is not None else SHIPPED
+    if p.is_dir() and (p / "image.pt").exists():
+        p = p / "image.pt"
+    if not p.exists():
+        raise ImageModelError(f"no image checkpoint at {p}; train one with `artformer train image` "
+                              f"(the shipped one is model/weights/image_small.pt)")
+    try:
+        ckpt = read_checkpoint(p)
+    except CheckpointError as e:
+        raise ImageModelError(str(e)) from e
+    if ckpt.get("condition") != "image":
+        raise ImageModelError(f"{p} is a text-conditioned transformer checkpoint, not an image "
+                              f"model; pass an `artformer train image` checkpoint")
+    net = build_network(ckpt)
+    am = ArticulationModel(net, ckpt)
+    enc_info = ckpt.get("image_encoder") or {}
+    cfg = ImageEncoderConfig(**{k: (tuple(v) if k == "background" else v)
+                                for k, v in enc_info.get("config", {}).items()})
+    encoder = ImageEncoder(cfg)
+    if enc_info.get("tail"):
+        encoder.load_tail_state_dict({k: v.float() for k, v in enc_info["tail"].items()})
+    encoder.requires_grad_(False)
+    return ImageArticulationModel(am, encoder, ckpt)
+
+
+def encode_image_condition(image: ImageLike, model: Optional[ImageArticulationModel] = None
+                           ) -> tuple[torch.Tensor, torch.Tensor]:
+    """One image → (tokens (1, 49, 1280), mask (1, 49)); with ``model`` its (fine-tuned) encoder."""
+    if model is None:
+        from model.encoders.image import encode_image_condition as frozen
+        return frozen(image)
+    return model.encode(image)

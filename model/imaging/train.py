@@ -1,0 +1,376 @@
+"""Training of the image-conditioned articulation transformer (`artformer train image`).
+
+The network is the articulation transformer itself (model.articulation): its condition
+interface takes any tokens (B, L, D) + mask with a per-modality input projection, and the
+image modality (D = 1280) is already part of every config. This module supplies the
+condition: for every training sample (object, decoding round) one random rendered view of the
+object, through the EfficientNet-Lite0 tail over cached trunk features (model.imaging.features).
+
+* frozen encoder (``trainable_blocks = 0``): the 49 × 1280 tokens of every view are computed
+  once at start (fp16, in memory), a step costs what a text step costs;
+* light fine-tuning (``trainable_blocks = 1``): the last MBConv block + head conv train with
+  the transformer (learning rate × ``tail_lr_mult``), the tail runs every step.
+
+By default the run starts from the trained text model (same config, normalisation and label
+table; only the image projection is new), which shortens training a lot on a CPU.
+
+A checkpoint is an articulation checkpoint (model.articulation.checkpoint) with extra keys:
+``condition = "image"``, ``image_encoder = {"config": ..., "tail": fine-tuned weights}``,
+``renders`` (render-set manifest), ``init`` (the text checkpoint it started from).
+"""
+from __future__ import annotations
+
+import json
+import logging
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Optional
+
+import numpy as np
+import torch
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class ImageTrainConfig:
+    trainable_blocks: int = 0      # 0 = frozen encoder; 1 = fine-tune the last block + head conv
+    tail_lr_mult: float = 0.1      # learning-rate factor of the fine-tuned encoder tail
+    init: str = "model/weights/transformer_small.pt"   # text checkpoint to start from, or "none"
+    eval_views: int = 0            # val loss: views per object (0 = all)
+
+
+@dataclass
+class ImageRunConfig:
+    data: str
+    renders: str
+    out: str
+    net: object                    # ArticulationConfig (replaced by the init checkpoint's)
+    train: object                  # TrainConfig
+    image: ImageTrainConfig = field(default_factory=ImageTrainConfig)
+    targets: object = None         # PriorTargets / StandInTargets (model.articulation.targets)
+    command: str = ""
+    progress: bool = True
+
+
+class ImageConditions:
+    """Condition tokens of rendered views, from cached trunk features."""
+
+    def __init__(self, feats, encoder, precompute: bool, chunk: int = 256):
+        self.feats, self.encoder = feats, encoder
+        self.tokens = None
+        if precompute:   # frozen encoder: every view's tokens once, fp16
+            N, K = feats.feats.shape[:2]
+            flat = feats.feats.reshape(N * K, *feats.feats.shape[2:])          # (N*K, C, 7, 7)
+            out = torch.empty(N * K, 49, encoder.dim, dtype=torch.float16)
+            with torch.no_grad():
+                for s in range(0, N * K, chunk):
+                    out[s:s + chunk] = encoder.tail(flat[s:s + chunk].float(), feats.split).half()
+            self.tokens = out.view(N, K, 49, encoder.dim)                      # (N, K, 49, D)
+
+    @property
+    def views(self) -> int:
+        return self.feats.views
+
+    def batch(self, ids: list[str], views: list[int]) -> tuple[torch.Tensor, torch.Tensor]:
+        """-> tokens (B, 49, 1280) float32, mask (B, 49) bool."""
+        if self.tokens is not None:
+            rows = torch.tensor([self.feats.index[i] for i in ids])
+            tok = self.tokens[rows, torch.as_tensor(views)].float()
+        else:
+            tok = self.encoder.tail(self.feats.batch(ids, views), self.feats.split)
+        return tok, torch.ones(tok.shape[:2], dtype=torch.bool)
+
+
+def _image_batch(items, pairs, views, geo_shape, conds: ImageConditions):
+    from model.articulation.data import collate, round_sample
+    samples = [round_sample(items[i], k) for i, k in pairs]
+    batch, targets = collate(samples, geo_shape)
+    cond, cmask = conds.batch([items[i].id for i, _ in pairs], views)
+    return batch, targets, cond, cmask
+
+
+@torch.no_grad()
+def evaluate_image_loss(net, items, geo_shape, conds: ImageConditions, tc, n_batches: int,
+                        seed: int = 1234) -> dict:
+    """Mean loss terms over a fixed subset of (object, round, view) samples (no dropout)."""
+    from model.articulation.train import all_samples
+    was = net.training
+    net.eval()
+    rng = np.random.default_rng(seed)
+    pairs = all_samples(items)
+    order = rng.permutation(len(pairs))
+    sums: dict[str, float] = {}
+    nb = 0
+    for b in range(n_batches):
+        sel = order[b * tc.batch_size:(b + 1) * tc.batch_size]
+        if len(sel) == 0:
+            break
+        views = [int(j) % conds.views for j in sel]
+        batch, targets, cond, cmask = _image_batch(items, [pairs[j] for j in sel], views,
+                                                   geo_shape, conds)
+        _, L = net(batch, cond, cmask, "image", targets=targets, weights=asdict(tc))
+        for k, v in L.items():
+            sums[k] = sums.get(k, 0.0) + float(v)
+        nb += 1
+    net.train(was)
+    return {k: v / max(nb, 1) for k, v in sums.items()}
+
+
+def _init_from(path: str):
+    from model.articulation.checkpoint import read_checkpoint
+    ck = read_checkpoint(path)
+    if ck.get("condition") == "image":
+        log.info("initialising from image checkpoint %s", path)
+    return ck
+
+
+def train_image(rc: ImageRunConfig) -> Path:
+    """Train an image-conditioned model in ``rc.out``; returns the path of image.pt."""
+    from model.articulation.checkpoint import save_checkpoint
+    from model.articulation.config import ArticulationConfig
+    from model.articulation.network import ArticulationTransformer
+    from model.articulation.train import _CodebookView, all_samples, lr_at, prepare_data
+    from model.encoders.image import ImageEncoder, ImageEncoderConfig
+
+    from .features import ViewFeatures, build_feature_cache
+    from .renders import load_render_manifest, rendered_ids
+
+    tc, ic = rc.train, rc.image
+    if ic.trainable_blocks not in (0, 1):
+        raise ValueError("the feature cache serves trainable_blocks 0 or 1")
+    torch.set_num_threads(max(1, tc.threads))
+    out = Path(rc.out)
+    out.mkdir(parents=True, exist_ok=True)
+    t_start = time.time()
+    init = None
+    if ic.init and ic.init.lower() != "none":
+        init = _init_from(ic.init)
+        cfg = ArticulationConfig.from_dict(init["config"])
+        tc.text_encoder = init.get("text_encoder") or tc.text_encoder
+    else:
+        cfg = rc.net
+        tg = rc.targets
+        cfg.cs_dim = int(tg.cs_dim)
+        cfg.num_codebooks, cfg.codebook_size = int(tg.num_codebooks), int(tg.codebook_size)
+    if cfg.cond_dims.get("image") != 1280:
+        cfg.cond_dims = {**cfg.cond_dims, "image": 1280}
+    data = prepare_data(rc.data, _CodebookView(rc.targets, cfg), predict_z=cfg.predict_z,
+                        cache_dir=str(out / "cache"),
+                        stats=None if init is None else init["stats"],
+                        label_table=None if init is None else init["label_table"])
+    rmanifest = load_render_manifest(rc.renders)
+    tr_all, va_all = data.items["train"], data.items.get("val") or []
+    ids = [it.id for it in tr_all + va_all]
+    have = set(rendered_ids(rc.renders, ids))
+    tr = [it for it in tr_all if it.id in have]
+    va = [it for it in va_all if it.id in have]
+    if not tr:
+        raise ValueError(f"no training object of {rc.data} has renders in {rc.renders}; "
+                         f"run `artformer data render` first")
+    if len(tr) < len(tr_all):
+        log.warning("%d of %d train objects have no renders and are skipped",
+                    len(tr_all) - len(tr), len(tr_all))
+    t0 = time.time()
+    feats = ViewFeatures(build_feature_cache(rc.renders, [it.id for it in tr + va],
+                                             progress=rc.progress))
+    t_feats = time.time() - t0
+    encoder = ImageEncoder(ImageEncoderConfig(trainable_blocks=ic.trainable_blocks))
+    conds = ImageConditions(feats, encoder, precompute=ic.trainable_blocks == 0)
+    log.info("data %s: %d train / %d val objects x %d views; features %.0f s",
+             data.data_version, len(tr), len(va), feats.views, t_feats)
+
+    torch.manual_seed(tc.seed)
+    net = ArticulationTransformer(cfg)
+    if init is not None:
+        sd = {k: v.float() if v.is_floating_point() else v for k, v in init["state_dict"].items()}
+        net.load_state_dict(sd)
+        if init.get("condition") == "image" and init.get("image_encoder", {}).get("tail"):
+            encoder.load_tail_state_dict(init["image_encoder"]["tail"])
+    groups = [{"params": list(net.parameters()), "lr_mult": 1.0}]
+    tail = encoder.tail_parameters()
+    if tail:
+        groups.append({"params": tail, "lr_mult": ic.tail_lr_mult})
+    opt = torch.optim.AdamW(groups, lr=tc.lr, weight_decay=tc.weight_decay, betas=(0.9, 0.98))
+    rng = np.random.default_rng(tc.seed)
+    history: list[dict] = []
+    render_info = {k: rmanifest.get(k) for k in ("render_version", "views", "size", "seed",
+                                                   "data_version")}
+    render_info["path"] = str(rc.renders)
+
+    def save(path: Path, step: int, half: bool = False) -> None:
+        tail_sd = encoder.tail_state_dict()
+        if half:
+            tail_sd = {k: v.half() if v.is_floating_point() else v for k, v in tail_sd.items()}
+        extra = {"condition": "image", "targets": getattr(rc.targets, "name", "?"),
+                 "image_encoder": {"config": asdict(encoder.config), "tail": tail_sd},
+                 "image_train_config": asdict(ic), "renders": render_info,
+                 "init": ic.init if init is not None else "none",
+                 "elapsed": time.time() - t_loop, "history": history, "ablation": "none"}
+        save_checkpoint(path, net, stats=data.stats, label_table=data.label_table,
+                        text_encoder=tc.text_encoder, data_version=data.data_version,
+                        seed=tc.seed, command=rc.command, step=step, train_config=asdict(tc),
+                        extra=extra, half=half)
+
+    pairs = all_samples(tr)
+    perm, cursor = rng.permutation(len(pairs)), 0
+    net.train()
+    encoder.train()
+    budget = tc.max_minutes * 60.0
+    bar = None
+    if rc.progress:
+        from tqdm import tqdm
+        bar = tqdm(total=tc.max_steps, desc="train image", unit="step")
+    run: dict[str, float] = {}
+    step = 0
+    t_loop = time.time()
+    val_batches = tc.val_batches
+    while step < tc.max_steps:
+        if budget and time.time() - t_loop > budget:
+            log.info("wall-clock budget of %.1f min reached at step %d", tc.max_minutes, step)
+            break
+        if cursor + tc.batch_size > len(perm):
+            perm, cursor = rng.permutation(len(pairs)), 0
+        sel = perm[cursor:cursor + tc.batch_size]
+        cursor += tc.batch_size
+        views = rng.integers(0, feats.views, len(sel)).tolist()
+        batch, targets, cond, cmask = _image_batch(tr, [pairs[j] for j in sel], views,
+                                                   data.geo_shape, conds)
+        drop = torch.from_numpy(rng.random(len(sel)) < tc.cond_dropout)
+        for g in opt.param_groups:
+            g["lr"] = lr_at(step, tc) * g["lr_mult"]
+        _, L = net(batch, cond, cmask, "image", drop=drop, targets=targets, weights=asdict(tc))
+        opt.zero_grad(set_to_none=True)
+        L["total"].backward()
+        torch.nn.utils.clip_grad_norm_(net.parameters(), tc.grad_clip)
+        if tail:
+            torch.nn.utils.clip_grad_norm_(tail, tc.grad_clip)
+        opt.step()
+        step += 1
+        for k, v in L.items():
+            v = float(v.detach())
+            run[k] = 0.98 * run.get(k, v) + 0.02 * v
+        if bar is not None:
+            bar.update(1)
+            bar.set_postfix(loss=f"{run['total']:.3f}", end=f"{run['end']:.3f}")
+        if step % tc.val_every == 0:
+            rec = {"step": step, "train": dict(run), "time_min": (time.time() - t_loop) / 60}
+            if va:
+                rec["val"] = evaluate_image_loss(net, va, data.geo_shape, conds, tc, val_batches)
+            history.append(rec)
+            log.info("step %d train %.4f val %s", step, run["total"],
+                     f"{rec['val']['total']:.4f}" if va else "-")
+        if step % tc.ckpt_every == 0:
+            save(out / "last.pt", step)
+    if bar is not None:
+        bar.close()
+    final = {"step": step, "train": dict(run), "time_min": (time.time() - t_loop) / 60}
+    if va:
+        final["val"] = evaluate_image_loss(net, va, data.geo_shape, conds, tc, val_batches)
+    history.append(final)
+    save(out / "last.pt", step)
+    save(out / "image.pt", step)
+    summary = {"steps": step, "train_minutes": (time.time() - t_loop) / 60,
+               "total_minutes": (time.time() - t_start) / 60, "feature_seconds": t_feats,
+               "train_objects": len(tr), "val_objects": len(va), "views": feats.views,
+               "trainable_blocks": ic.trainable_blocks, "final": final}
+    (out / "history.json").write_text(json.dumps(history, indent=1))
+    (out / "summary.json").write_text(json.dumps(summary, indent=1))
+    log.info("done: %d steps in %.1f min", step, (time.time() - t_start) / 60)
+    return out / "image.pt"
+
+
+def write_half(src: Path, dst: Path) -> None:
+    """fp16 copy of an image checkpoint (network and fine-tuned encoder tail)."""
+    import io
+
+    from model.articulation.checkpoint import read_checkpoint
+    from model.data.format import atomic_write_bytes
+    ck = read_checkpoint(src)
+    ck["state_dict"] = {k: v.half() if v.is_floating_point() else v for k, v in ck["state_dict"].items()}
+    enc = ck.get("image_encoder", {})
+    enc["tail"] = {k: v.half() if v.is_floating_point() else v for k, v in enc.get("tail", {}).items()}
+    for k in ("optimizer",):
+        ck.pop(k, None)
+    buf = io.BytesIO()
+    torch.save(ck, buf)
+    atomic_write_bytes(dst, buf.getvalue())
+
+
+# ---------------------------------------------------------------------------------------------
+# CLI
+# ---------------------------------------------------------------------------------------------
+def _parser():
+    import argparse
+    ap = argparse.ArgumentParser(
+        prog="artformer train image",
+        description="Train the articulation transformer conditioned on rendered images "
+                    "(EfficientNet-Lite0 tokens), or --eval an image checkpoint on held-out renders.")
+    ap.add_argument("--data", default="data/prepared/v1")
+    ap.add_argument("--renders", default="data/renders/v1")
+    ap.add_argument("--prior", default="model/weights/prior_small.pt",
+                    help="shape-prior checkpoint (P_gt / c_s targets); 'none' = stand-in targets")
+    ap.add_argument("--sdf", default="model/weights/sdf_small.pt")
+    ap.add_argument("--preset", default="small")
+    ap.add_argument("--out", default="runs/image_small")
+    ap.add_argument("--init", default="model/weights/transformer_small.pt",
+                    help="text transformer checkpoint to start from ('none' = from scratch)")
+    ap.add_argument("--trainable-blocks", type=int, default=0, choices=(0, 1),
+                    help="0 = frozen encoder (default), 1 = fine-tune its last block + head")
+    ap.add_argument("--tail-lr-mult", type=float, default=0.1)
+    ap.add_argument("--steps", type=int)
+    ap.add_argument("--minutes", type=float)
+    ap.add_argument("--batch-size", type=int)
+    ap.add_argument("--lr", type=float)
+    ap.add_argument("--seed", type=int)
+    ap.add_argument("--threads", type=int)
+    ap.add_argument("--half", metavar="PATH", help="also write an fp16 copy (the shipped file)")
+    ap.add_argument("--eval", metavar="CKPT", help="category / structure accuracy of CKPT on --split")
+    ap.add_argument("--split", default="test")
+    ap.add_argument("--limit", type=int, default=0)
+    ap.add_argument("--eval-views", default="all", help="--eval: view indices (comma list) or 'all'")
+    ap.add_argument("--eval-seed", type=int, default=0)
+    ap.add_argument("--temperature", type=float, default=1.0)
+    ap.add_argument("--json", metavar="PATH")
+    ap.add_argument("--no-progress", action="store_true")
+    return ap
+
+
+def cli_main(argv: list[str]) -> int:
+    import shlex
+    args = _parser().parse_args(argv)
+    if args.eval:
+        from .evaluate import image_alignment_report
+        views = None if args.eval_views == "all" else [int(v) for v in args.eval_views.split(",")]
+        rep = image_alignment_report(args.eval, args.data, args.renders, split=args.split,
+                                     views=views, limit=args.limit, seed=args.eval_seed,
+                                     temperature=args.temperature, progress=not args.no_progress)
+        print(json.dumps({k: v for k, v in rep.items() if k != "rows"}, indent=1))
+        if args.json:
+            Path(args.json).parent.mkdir(parents=True, exist_ok=True)
+            Path(args.json).write_text(json.dumps(rep, indent=1))
+        return 0
+    from model.articulation.commands import make_targets
+    from model.articulation.config import preset
+    overrides = {k: v for k, v in {"max_steps": args.steps, "max_minutes": args.minutes,
+                                   "batch_size": args.batch_size, "lr": args.lr,
+                                   "seed": args.seed, "threads": args.threads}.items()
+                 if v is not None}
+    net_cfg, tc = preset(args.preset, **overrides)
+    targets = make_targets(args.prior, args.sdf, net_cfg)
+    ic = ImageTrainConfig(trainable_blocks=args.trainable_blocks, tail_lr_mult=args.tail_lr_mult,
+                          init=args.init)
+    if ic.init.lower() != "none" and not Path(ic.init).exists():
+        print(f"artformer train image: --init {ic.init} does not exist; train the text model "
+              f"first or pass --init none", flush=True)
+        return 2
+    command = "artformer train image " + " ".join(shlex.quote(a) for a in argv)
+    path = train_image(ImageRunConfig(data=args.data, renders=args.renders, out=args.out,
+                                      net=net_cfg, train=tc, image=ic, targets=targets,
+                                      command=command, progress=not args.no_progress))
+    if args.half:
+        write_half(path, Path(args.half))
+        print(f"fp16 copy: {args.half}")
+    print(f"checkpoint: {path}")
+    return 0
