@@ -196,3 +196,36 @@ def test_trained_tiny_model_learns_the_toy_structure(trained, tmp_path):
                            progress=False, temperature=0.0)
     assert rep["prompts"] == 48 and 0.0 <= rep["alignment"] <= 1.0
     assert rep["category"] > 0.5
+
+
+def test_prior_targets_from_geometry_checkpoints(tmp_path):
+    """The real target provider on randomly initialised tiny shape-prior checkpoints."""
+    from model.articulation.targets import PriorTargets
+    from model.geometry.autoencoder import SDFAutoEncoder
+    from model.geometry.checkpoint import save_checkpoint as geo_save
+    from model.geometry.config import get_preset
+    from model.geometry.prior import ShapePrior
+    torch.manual_seed(0)
+    p = get_preset("tiny")
+    geo_save(tmp_path / "sdf.pt", "sdf", SDFAutoEncoder(p.sdf), train_cfg=p.sdf_train)
+    geo_save(tmp_path / "prior.pt", "prior", ShapePrior(p.prior))
+    t = PriorTargets(str(tmp_path / "prior.pt"), str(tmp_path / "sdf.pt"))
+    assert (t.z_dim, t.num_codebooks, t.codebook_size, t.cs_dim) == (32, 4, 8, 16)
+    pts = np.random.default_rng(0).uniform(-0.9, 0.9, size=(3, 300, 3)).astype(np.float32)
+    z = t.part_latents(pts)
+    assert z.shape == (3, 32) and np.allclose(z, t.part_latents(pts))
+    P = t.code_distribution(torch.as_tensor(z))
+    assert P.shape == (3, 4, 8) and torch.allclose(P.sum(-1), torch.ones(3, 4), atol=1e-5)
+    cs = t.semantic_condition(["storage furniture, drawer", "bottle, cap"])
+    assert cs.shape == (2, 16) and not torch.allclose(cs[0], cs[1])
+    # and a tiny training run on them
+    from model.articulation.config import preset
+    from model.articulation.train import RunConfig, train
+    write_toy_dataset(tmp_path / "data", n=10)
+    net, tc = preset("tiny", max_steps=4, val_every=2, ckpt_every=2)
+    path = train(RunConfig(data=str(tmp_path / "data"), out=str(tmp_path / "run"), net=net,
+                           train=tc, targets=t, progress=False))
+    am = ArticulationModel.load(path)
+    assert am.cfg.cs_dim == 16 and am.cfg.codebook_size == 8 and am.table_cs.shape[1] == 16
+    trees = am.decode(*am.encode_text(["a bottle"]), seed=0, max_nodes=4)
+    assert trees[0].P_logits.shape[1:] == (4, 8)

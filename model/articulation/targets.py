@@ -65,30 +65,35 @@ class StandInTargets:
 
 
 class PriorTargets:
-    """Targets from the trained shape prior (and its SDF auto-encoder)."""
+    """Targets from the trained shape prior and its SDF auto-encoder (model.geometry API)."""
     name = "prior"
 
-    def __init__(self, prior_path: str, sdf_path: str | None = None):
-        from model.geometry import api as geo   # the geometry engineer's public API
-        self.prior_path, self.sdf_path = prior_path, sdf_path
-        self._prior = geo.load_prior(prior_path)
-        self._sdf = geo.load_sdf(sdf_path) if sdf_path else None
-        self.z_dim = int(self._prior.z_dim)
-        self.num_codebooks = int(self._prior.num_codebooks)
-        self.codebook_size = int(self._prior.codebook_size)
-        self.cs_dim = int(self._prior.cs_dim)
+    def __init__(self, prior_path: str, sdf_path: str, n_points: int | None = None,
+                 seed: int = 0):
+        from model.geometry.api import ShapeModel
+        self.prior_path, self.sdf_path = str(prior_path), str(sdf_path)
+        self.shape = ShapeModel.load(sdf_path, prior_path)
+        if n_points is None:   # the auto-encoder's own training input size
+            ck = torch.load(sdf_path, map_location="cpu", weights_only=False)
+            n_points = int(ck.get("train", {}).get("n_points", 1024))
+        pc = self.shape.prior.cfg
+        self.z_dim, self.num_codebooks = int(pc.z_dim), int(pc.n_codebooks)
+        self.codebook_size, self.cs_dim = int(pc.codebook_size), int(pc.cs_dim)
+        self.n_points, self.seed = n_points, seed
 
     @torch.inference_mode()
     def part_latents(self, points: np.ndarray) -> np.ndarray:
-        if self._sdf is None:
-            raise RuntimeError("part latents need the SDF auto-encoder checkpoint (--sdf)")
-        z = self._sdf.encode(torch.as_tensor(np.asarray(points, dtype=np.float32)))
-        return z.float().numpy()
+        """points (K, P, 3) -> posterior-mean z (K, Z) from a fixed subset of n_points."""
+        pts = torch.as_tensor(np.asarray(points, dtype=np.float32))
+        P = pts.shape[1]
+        g = torch.Generator().manual_seed(self.seed)
+        sel = torch.randperm(P, generator=g)[: min(self.n_points, P)]
+        return self.shape.ae.encode(pts[:, sel]).float().numpy()
 
     @torch.inference_mode()
     def code_distribution(self, z: torch.Tensor) -> torch.Tensor:
-        return self._prior.code_distribution(torch.as_tensor(z, dtype=torch.float32)).float()
+        return self.shape.code_distribution(torch.as_tensor(z, dtype=torch.float32)).float()
 
     @torch.inference_mode()
     def semantic_condition(self, texts: list[str]) -> torch.Tensor:
-        return self._prior.semantic_condition(list(texts)).float()
+        return self.shape.semantic_condition(list(texts)).float()
