@@ -281,6 +281,9 @@ class GenerationService:
         if not outs:
             return answer(job, "error", "generation failed: the model returned no object",
                           **base), None
+        if self._state == STOPPING:   # do not even queue up behind stop() for the lock
+            return answer(job, "rejected", "abandoned: node shutting down before the result "
+                                           "was written", **base), None
         with self._export_lock:
             if self._state == STOPPING:
                 return answer(job, "rejected", "abandoned: node shutting down before the "

@@ -1,0 +1,45 @@
+"""Start the artformer generator node with the package's parameter file.
+
+    ros2 launch artformer_ros artformer.launch.py [params_file:=my.yaml]
+        [backend:=example] [namespace:=artformer] [output_dir:=/tmp/artformer]
+
+Needs a full ROS 2 install (the `launch` and `launch_ros` packages); topics are relative, so
+`namespace` moves all of them, and robot_description can be remapped with `remap_description`.
+"""
+import os
+
+from ament_index_python.packages import get_package_share_directory
+from launch import LaunchDescription
+from launch.actions import DeclareLaunchArgument
+from launch.substitutions import LaunchConfiguration
+from launch_ros.actions import Node
+
+
+def generate_launch_description():
+    share = get_package_share_directory("artformer_ros")
+    default_params = os.path.join(share, "config", "artformer.yaml")
+    args = [
+        DeclareLaunchArgument("params_file", default_value=default_params,
+                              description="YAML file with the node's parameters"),
+        DeclareLaunchArgument("backend", default_value="model",
+                              description="model (the pipeline) or example (no model)"),
+        DeclareLaunchArgument("output_dir", default_value="~/.ros/artformer_ros/output",
+                              description="where the generated URDF folders go"),
+        DeclareLaunchArgument("namespace", default_value="",
+                              description="namespace of the node and its topics"),
+        DeclareLaunchArgument("remap_description", default_value="robot_description",
+                              description="topic the URDF is latched on"),
+    ]
+    node = Node(
+        package="artformer_ros",
+        executable="generator_node",
+        name="artformer_generator",
+        namespace=LaunchConfiguration("namespace"),
+        output="screen",
+        emulate_tty=True,
+        parameters=[LaunchConfiguration("params_file"),
+                    {"backend": LaunchConfiguration("backend"),
+                     "output_dir": LaunchConfiguration("output_dir")}],
+        remappings=[("robot_description", LaunchConfiguration("remap_description"))],
+    )
+    return LaunchDescription(args + [node])

@@ -1,0 +1,239 @@
+"""GenerationService (queue, worker, folders, stop) with a scripted in-process backend."""
+import os
+import threading
+import time
+
+import pytest
+
+from artformer_ros.params import NodeSettings
+from artformer_ros.service import (OWNER_MARKER, PARTIAL_MARKER, RESULT_FILE, FAILED, READY,
+                                   GenerationService, Job, owned_folders)
+from model.pipeline.api import ExportResult, GeneratedObject, GenerationError
+
+URDF = '<robot name="r"><link name="base"/></robot>'
+
+
+class ScriptedBackend:
+    """generate() waits on ``gate`` when set; ``fail`` maps a prompt to an exception."""
+    name = "scripted"
+
+    def __init__(self):
+        self.gate = None
+        self.started = threading.Event()
+        self.fail = {}
+        self.export_fail = {}
+        self.calls = []
+
+    def generate(self, *, text, image, seed, samples):
+        self.calls.append((text, seed, samples))
+        self.started.set()
+        if self.gate is not None:
+            assert self.gate.wait(10)
+        if text in self.fail:
+            raise self.fail[text]
+        return [GeneratedObject(obj=None, prompt=text or "<image>", seed=seed + k,
+                                timings={"stage": 0.001}) for k in range(samples)]
+
+    def export(self, result, out_dir):
+        if result.prompt in self.export_fail:
+            os.makedirs(out_dir)
+            open(os.path.join(out_dir, "half.obj"), "w").close()
+            raise self.export_fail[result.prompt]
+        os.makedirs(os.path.join(out_dir, "meshes"))
+        with open(os.path.join(out_dir, "r.urdf"), "w") as f:
+            f.write(URDF)
+        mesh = os.path.join(out_dir, "meshes", "base.obj")
+        open(mesh, "w").close()
+        return ExportResult(out_dir=out_dir, urdf_path=os.path.join(out_dir, "r.urdf"),
+                            mesh_paths={"base": mesh}, metadata_path="")
+
+
+class Harness:
+    def __init__(self, tmp_path, backend=None, load_gate=None, load_error=None, **settings):
+        self.backend = backend or ScriptedBackend()
+        self.settings = NodeSettings(backend="example", output_dir=str(tmp_path / "out"),
+                                     **settings)
+        self.answers = []
+        self.lock = threading.Lock()
+
+        def load():
+            if load_gate is not None:
+                assert load_gate.wait(10)
+            if load_error is not None:
+                raise load_error
+            return self.backend
+
+        def emit(result, urdf):
+            with self.lock:
+                self.answers.append((result, urdf))
+
+        self.svc = GenerationService(self.settings, load, emit)
+
+    def wait_answers(self, n, timeout=10.0):
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            with self.lock:
+                if len(self.answers) >= n:
+                    return list(self.answers)
+            time.sleep(0.005)
+        raise AssertionError(f"only {len(self.answers)} of {n} answers: {self.answers}")
+
+    def by_id(self):
+        return {r["id"]: (r, u) for r, u in self.answers}
+
+
+def test_done_result_writes_a_complete_folder(tmp_path):
+    h = Harness(tmp_path, seed=7)
+    h.svc.start()
+    assert h.svc.wait_ready(5)
+    assert h.svc.submit(Job("a", "text", text="a cabinet"))
+    (res, urdf), = h.wait_answers(1)
+    assert res["status"] == "done" and res["id"] == "a" and res["seed"] == 7
+    assert urdf == URDF
+    assert res["urdf_path"].startswith(res["output_dir"])
+    assert set(res["timings"]) >= {"queue_wait", "generate", "export", "total", "stages"}
+    folder = res["output_dir"]
+    assert sorted(os.listdir(folder)) == sorted([OWNER_MARKER, RESULT_FILE, "sample_0"])
+    assert h.svc.stop(1)
+
+
+def test_request_while_loading_gets_a_clear_error(tmp_path):
+    gate = threading.Event()
+    h = Harness(tmp_path, load_gate=gate)
+    h.svc.start()
+    assert not h.svc.submit(Job("early", "text", text="x"))
+    (res, urdf), = h.wait_answers(1)
+    assert res["status"] == "error" and "still loading" in res["message"] and urdf is None
+    gate.set()
+    assert h.svc.wait_ready(5)
+    assert h.svc.submit(Job("late", "text", text="x"))
+    h.wait_answers(2)
+    assert h.by_id()["late"][0]["status"] == "done"
+    h.svc.stop(1)
+
+
+def test_failed_load_answers_every_request_with_the_reason(tmp_path):
+    h = Harness(tmp_path, load_error=FileNotFoundError("no checkpoint at /nowhere"))
+    h.svc.start()
+    assert not h.svc.wait_ready(5)
+    assert h.svc.state == FAILED
+    h.svc.submit(Job("r", "text", text="x"))
+    (res, _), = h.wait_answers(1)
+    assert res["status"] == "error" and "/nowhere" in res["message"]
+    h.svc.stop(1)
+
+
+def test_full_queue_rejects_at_once_and_every_request_is_answered(tmp_path):
+    h = Harness(tmp_path, queue_size=2, retention=50)
+    h.backend.gate = threading.Event()
+    h.svc.start()
+    assert h.svc.wait_ready(5)
+    h.svc.submit(Job("run", "text", text="x"))
+    assert h.backend.started.wait(5)   # the worker holds "run"; the queue is empty
+    accepted = [h.svc.submit(Job(f"q{i}", "text", text="x")) for i in range(5)]
+    assert accepted == [True, True, False, False, False]
+    rejected = h.wait_answers(3)
+    assert all(r["status"] == "rejected" and "queue full" in r["message"] for r, _ in rejected)
+    h.settings.queue_size = 3            # a live parameter change takes effect at once
+    assert h.svc.submit(Job("q5", "text", text="x"))
+    h.backend.gate.set()
+    h.wait_answers(7)
+    ids = h.by_id()
+    assert len(h.answers) == 7 and len(ids) == 7
+    assert [ids[k][0]["status"] for k in ("run", "q0", "q1", "q5")] == ["done"] * 4
+    h.svc.stop(1)
+
+
+def test_retention_keeps_the_newest_folders_only(tmp_path):
+    h = Harness(tmp_path, retention=2)
+    foreign = tmp_path / "out" / "not_ours"
+    foreign.mkdir(parents=True)
+    h.svc.start()
+    h.svc.wait_ready(5)
+    for i in range(5):
+        h.svc.submit(Job(f"r{i}", "text", text="x"))
+        h.wait_answers(i + 1)
+    complete, partial = owned_folders(h.settings.output_path)
+    assert partial == [] and len(complete) == 2
+    assert [os.path.basename(p).rsplit("_", 1)[1] for p in complete] == ["r3", "r4"]
+    assert foreign.exists()   # folders the node did not write are never touched
+    h.svc.stop(1)
+
+
+def test_generation_errors_become_error_results_and_serving_continues(tmp_path):
+    h = Harness(tmp_path)
+    h.backend.fail = {"nothing": GenerationError("no part produced a valid mesh"),
+                      "crash": ZeroDivisionError("boom")}
+    h.backend.export_fail = {"badexport": GenerationError("mesh extraction failed")}
+    h.svc.start()
+    h.svc.wait_ready(5)
+    for rid in ("nothing", "crash", "badexport", "fine"):
+        h.svc.submit(Job(rid, "text", text=rid))
+    h.wait_answers(4)
+    ids = h.by_id()
+    assert ids["nothing"][0]["message"] == "generation failed: no part produced a valid mesh"
+    assert ids["crash"][0]["message"] == "internal error: ZeroDivisionError: boom"
+    assert "mesh extraction failed" in ids["badexport"][0]["message"]
+    assert [ids[k][0]["status"] for k in ("nothing", "crash", "badexport")] == ["error"] * 3
+    assert ids["fine"][0]["status"] == "done"
+    complete, partial = owned_folders(h.settings.output_path)
+    assert len(complete) == 1 and partial == []   # the failed export left nothing behind
+    h.svc.stop(1)
+
+
+def test_stale_partial_folders_are_removed_at_start(tmp_path):
+    out = tmp_path / "out"
+    stale = out / "20250101T000000.000Z_00001_x"
+    stale.mkdir(parents=True)
+    (stale / OWNER_MARKER).write_text("{}")
+    (stale / PARTIAL_MARKER).write_text("")
+    h = Harness(tmp_path)
+    h.svc.start()
+    assert not stale.exists()
+    h.svc.stop(1)
+
+
+def test_stop_rejects_queued_and_abandons_the_running_generation(tmp_path):
+    h = Harness(tmp_path)
+    h.backend.gate = threading.Event()
+    h.svc.start()
+    h.svc.wait_ready(5)
+    h.svc.submit(Job("running", "text", text="x"))
+    assert h.backend.started.wait(5)
+    h.svc.submit(Job("queued", "text", text="x"))
+    assert h.svc.stop(timeout=0.2) is False          # still inside generate()
+    res = h.by_id()["queued"][0]
+    assert res["status"] == "rejected" and "shutting down" in res["message"]
+    assert not h.svc.submit(Job("after", "text", text="x"))
+    assert h.by_id()["after"][0]["status"] == "rejected"
+    h.backend.gate.set()                              # generate returns after the stop
+    h.wait_answers(3)
+    assert "abandoned" in h.by_id()["running"][0]["message"]
+    assert owned_folders(h.settings.output_path) == ([], [])
+
+
+@pytest.mark.parametrize("job_seed,node_seed,expect", [(5, 9, 5), (None, 9, 9), (None, -1, None)])
+def test_seed_policy(tmp_path, job_seed, node_seed, expect):
+    h = Harness(tmp_path, seed=node_seed)
+    h.svc.start()
+    h.svc.wait_ready(5)
+    h.svc.submit(Job("s", "text", text="x", seed=job_seed))
+    (res, _), = h.wait_answers(1)
+    if expect is None:
+        assert 0 <= res["seed"] <= 2**31 - 1
+    else:
+        assert res["seed"] == expect
+    h.svc.stop(1)
+
+
+def test_samples_are_exported_side_by_side(tmp_path):
+    h = Harness(tmp_path, samples=3, seed=10)
+    h.svc.start()
+    h.svc.wait_ready(5)
+    h.svc.submit(Job("m", "text", text="x"))
+    (res, _), = h.wait_answers(1)
+    assert [s["seed"] for s in res["samples"]] == [10, 11, 12]
+    assert sorted(os.listdir(res["output_dir"])) == sorted(
+        [OWNER_MARKER, RESULT_FILE, "sample_0", "sample_1", "sample_2"])
+    assert h.svc.state == READY
+    h.svc.stop(1)
