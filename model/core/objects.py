@@ -55,7 +55,12 @@ class JointType(enum.IntEnum):
         if isinstance(value, JointType):
             return value
         if isinstance(value, (int, np.integer)):
-            return cls(int(value))
+            try:
+                return cls(int(value))
+            except ValueError:
+                raise ObjectValidationError(
+                    f"unknown joint type {int(value)}; expected 0..{len(cls) - 1} "
+                    f"({', '.join(t.name.lower() for t in cls)})") from None
         try:
             return cls[str(value).strip().upper()]
         except KeyError:
@@ -247,6 +252,9 @@ class ArticulatedObject:
         while self.parts[index].parent >= 0:
             index = self.parts[index].parent
             d += 1
+            if d > len(self.parts):  # a cycle would otherwise loop forever
+                raise ObjectValidationError(
+                    f"cycle in the part tree through {self.parts[index].name!r}")
         return d
 
     def index_of(self, name: str) -> int:
@@ -275,9 +283,8 @@ class ArticulatedObject:
                 raise ObjectValidationError(f"part {p.name!r}: parent index {p.parent} does not exist")
             if p.parent == i:
                 raise ObjectValidationError(f"part {p.name!r} is its own parent (cycle)")
-        root = self.root
-        if self.parts[root].joint.type != JointType.FIXED:
-            raise ObjectValidationError(f"root part {self.parts[root].name!r} must have a fixed joint")
+        # Cycles first: a tree whose every part has a parent is a cycle, and saying so is
+        # clearer than "found 0 roots".
         for i in range(n):  # every chain must reach the root without revisiting
             seen, j = set(), i
             while self.parts[j].parent >= 0:
@@ -286,6 +293,9 @@ class ArticulatedObject:
                         f"cycle in the part tree through {self.parts[j].name!r}")
                 seen.add(j)
                 j = self.parts[j].parent
+        root = self.root
+        if self.parts[root].joint.type != JointType.FIXED:
+            raise ObjectValidationError(f"root part {self.parts[root].name!r} must have a fixed joint")
         for p in self.parts:
             where = f"part {p.name!r}"
             p.joint.validate(where)

@@ -11,7 +11,8 @@ follow ``model.export.urdf``); without it only loading and joint motion are chec
 
 MuJoCo reads the ``<mujoco><compiler meshdir=... strippath=.../></mujoco>`` element our
 exporter writes into the URDF. A URDF without that element (a foreign file) is given to
-MuJoCo and pybullet as a temporary copy whose mesh paths are resolved to absolute paths.
+MuJoCo and pybullet as a temporary copy whose mesh paths are resolved to absolute paths;
+visual meshes an engine cannot read (GLB) are left out of its copy (noted in the report).
 """
 from __future__ import annotations
 
@@ -43,6 +44,7 @@ class SimResult:
     max_rotation_error: Optional[float] = None   # radians
     seconds: float = 0.0
     error: str = ""
+    note: str = ""                          # e.g. visuals left out for this simulator
 
     @property
     def ok(self) -> bool:
@@ -76,7 +78,8 @@ class SimReport:
                 f" pose err {r.max_position_error:.2e} m / {r.max_rotation_error:.2e} rad"
             rows.append(f"{k}: {'ok' if r.ok else 'FAIL'} loaded={r.loaded} "
                         f"joints={r.num_joints} movable={r.joints_movable}{err}"
-                        f"{' error: ' + r.error if r.error else ''} ({r.seconds:.2f} s)")
+                        f"{' error: ' + r.error if r.error else ''} ({r.seconds:.2f} s)"
+                        f"{' [' + r.note + ']' if r.note else ''}")
         return "\n".join(rows)
 
 
@@ -270,19 +273,46 @@ def _has_mujoco_element(path: Path) -> bool:
     return etree.parse(str(path)).getroot().find("mujoco") is not None
 
 
-def _resolved_copy(path: Path, tmpdir: str) -> Path:
-    """A copy of a foreign URDF with absolute mesh paths and a MuJoCo compiler element."""
+# Mesh formats the physics engines read (pybullet: obj/stl/dae; MuJoCo: obj/stl/msh).
+_SIM_MESH_EXT = {"pybullet": (".obj", ".stl", ".dae"), "mujoco": (".obj", ".stl", ".msh")}
+
+
+def _unreadable_visuals(path: Path, sim: str) -> list[str]:
+    from lxml import etree
+    root = etree.parse(str(path)).getroot()
+    bad = []
+    for vis in root.iter("visual"):
+        for mesh in vis.iter("mesh"):
+            fn = mesh.get("filename", "")
+            if not fn.lower().endswith(_SIM_MESH_EXT[sim]):
+                bad.append(fn)
+    return bad
+
+
+def _resolved_copy(path: Path, tmpdir: str, sim: str, drop_visuals: bool) -> Path:
+    """A copy of a URDF for a simulator: absolute mesh paths, a MuJoCo compiler element
+    (kept if present, with strippath off), and optionally no visuals (GLB visuals: the
+    engines cannot read them and visuals do not change kinematics)."""
     from lxml import etree
     from .importer import resolve_mesh_path
     tree = etree.parse(str(path))
     root = tree.getroot()
+    if drop_visuals:
+        for link in root.findall("link"):
+            for vis in link.findall("visual"):
+                link.remove(vis)
     for mesh in root.iter("mesh"):
         mesh.set("filename", str(resolve_mesh_path(mesh.get("filename", ""), path.parent)))
-    if root.find("mujoco") is None:
+    mj = root.find("mujoco")
+    if mj is None:
         mj = etree.SubElement(root, "mujoco")
-        etree.SubElement(mj, "compiler", attrib={"strippath": "false", "discardvisual": "false",
-                                                 "fusestatic": "false", "balanceinertia": "true"})
-    out = Path(tmpdir) / path.name
+    comp = mj.find("compiler")
+    if comp is None:
+        comp = etree.SubElement(mj, "compiler")
+    comp.attrib.update({"strippath": "false", "discardvisual": "false", "fusestatic": "false",
+                        "balanceinertia": "true"})
+    comp.attrib.pop("meshdir", None)
+    out = Path(tmpdir) / f"{sim}_{path.name}"
     tree.write(str(out))
     return out
 
@@ -303,7 +333,6 @@ def check_urdf(path: os.PathLike, obj=None, *, simulators=SIMULATORS) -> SimRepo
         return report
     moving = {j.name: j for j in joints if j.type in ("revolute", "prismatic", "continuous")}
     with tempfile.TemporaryDirectory(prefix="artformer_simcheck_") as tmpdir:
-        foreign_copy = None
         for sim in simulators:
             res = SimResult(sim)
             report.sims[sim] = res
@@ -311,10 +340,13 @@ def check_urdf(path: os.PathLike, obj=None, *, simulators=SIMULATORS) -> SimRepo
             close = lambda: None  # noqa: E731
             try:
                 load_path = path
-                if sim in ("mujoco", "pybullet") and not _has_mujoco_element(path):
-                    if foreign_copy is None:
-                        foreign_copy = _resolved_copy(path, tmpdir)
-                    load_path = foreign_copy
+                if sim in ("mujoco", "pybullet"):
+                    bad = _unreadable_visuals(path, sim)
+                    if bad:
+                        res.note = (f"{len(bad)} visual mesh(es) in a format {sim} cannot read "
+                                    f"(e.g. {Path(bad[0]).name}); checked without visuals")
+                    if bad or not _has_mujoco_element(path):
+                        load_path = _resolved_copy(path, tmpdir, sim, drop_visuals=bool(bad))
                 set_values, sim_movable, close = _BACKENDS[sim](load_path)
                 res.loaded = True
                 res.num_joints = len(sim_movable)
