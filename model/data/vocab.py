@@ -114,6 +114,19 @@ MOTION_ADJECTIVES: dict[str, tuple[str, ...]] = {
     "screw": ("screw-on", "threaded", "twist-off"),
     "fixed": ("fixed", "static", "rigid"),
 }
+# Label-specific wording that reads better than the generic one (same joint facts).
+LABEL_MOTION_SYNONYMS: dict[tuple[str, str], tuple[str, ...]] = {
+    ("button", "prismatic"): ("can be pressed in", "pushes in", "presses in", "can be pushed"),
+    ("knob", "revolute"): ("turns", "rotates within a limited range", "twists to a stop"),
+    ("dial", "revolute"): ("turns", "rotates within a limited range", "twists to a stop"),
+    ("cap", "revolute"): ("swivels", "swings around", "pivots open", "rotates on a pivot"),
+    ("cap", "prismatic"): ("slides off", "pulls off", "slides forward off the plug"),
+}
+LABEL_MOTION_ADJECTIVES: dict[tuple[str, str], tuple[str, ...]] = {
+    ("button", "prismatic"): ("push", "pressable"),
+    ("cap", "revolute"): ("swivel", "swivelling"),
+    ("cap", "prismatic"): ("slide-off", "removable"),
+}
 # Hinge / mounting sides used by the generator (metadata "side").
 SIDE_WORDS: dict[str, tuple[str, ...]] = {
     "left": ("left", "left-hand"),
@@ -190,6 +203,9 @@ PHRASE_TO_LABEL: dict[str, str] = _reverse(PART_SYNONYMS, PART_PLURALS)
 PHRASE_TO_CATEGORY: dict[str, str] = _reverse(
     CATEGORY_SYNONYMS, {k: tuple(plural(w) for w in v) for k, v in CATEGORY_SYNONYMS.items()})
 PHRASE_TO_JOINT: dict[str, str] = _reverse(MOTION_SYNONYMS, MOTION_ADJECTIVES)
+for (_label, _jt), _words in list(LABEL_MOTION_SYNONYMS.items()) + list(LABEL_MOTION_ADJECTIVES.items()):
+    for _w in _words:
+        PHRASE_TO_JOINT.setdefault(_w, _jt)
 
 
 def lookup_label(phrase: str) -> str | None:

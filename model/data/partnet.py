@@ -1,0 +1,522 @@
+"""PartNet-Mobility folder format: writer (for the procedural data) and loader (for ours and
+for the real dataset) — DESIGN §3.1, §3.2.
+
+A PartNet-Mobility object folder::
+
+    mobility.urdf          links link_<k> with one <visual> per OBJ piece, joints joint_<k>
+    mobility_v2.json       [{"id": k, "parent": p, "joint": "hinge|slider|static|free|heavy|junk",
+                             "name": "<semantic>", "jointData": {"axis": {...}, "limit": {...}}}]
+    semantics.txt          "link_<k> <joint word> <semantic>" per line
+    meta.json              {"model_cat": "<Category>", ...}
+    textured_objs/*.obj    the part pieces
+    descriptions.json      (ours) {"descriptions": {length: [texts]}, "summary": {...}}
+
+Up axis: the real dataset is y-up (its URDF puts a fixed joint from the empty ``base`` link
+with rpy = (π/2, 0, -π/2) in front of the tree). Our writer marks its own folders with
+``meta.json: {"up_axis": "z", "front_axis": "+x"}``. The loader reads ``up_axis`` from
+meta.json; when it is absent the folder is treated as real (y-up) data: the transforms of the
+joints leaving the empty root link are dropped and :data:`Y_UP_TO_Z_UP` (the same rotation as
+the dataset's standard root joint: OBJ +y → +z, OBJ +x → -y, OBJ -z → +x) is applied, then
+the object is put on z = 0 and centred on the z axis. Real objects keep their (unit-less,
+roughly unit-sized) scale.
+
+Joints: URDF revolute → revolute; continuous → continuous (range 0..2π); prismatic →
+prismatic; fixed / floating / planar (the dataset's "free", "heavy", "junk") → fixed, logged;
+a slider with ``"rotates": true`` in mobility_v2.json → screw; and the export convention of a
+screw (prismatic joint → link without visuals → revolute/continuous joint on the same axis
+line) is folded back into one screw joint.
+"""
+from __future__ import annotations
+
+import json
+import logging
+import math
+import os
+from pathlib import Path
+from typing import Iterator, Optional
+
+import numpy as np
+
+from model.core.objects import ArticulatedObject, Joint, JointType, Part
+from model.data import vocab
+from model.data.format import atomic_write_bytes, atomic_write_json
+
+log = logging.getLogger(__name__)
+
+# Rz(-90°) @ Rx(90°): the rotation of PartNet-Mobility's standard base joint.
+Y_UP_TO_Z_UP = np.array([[0.0, 0.0, -1.0],
+                         [-1.0, 0.0, 0.0],
+                         [0.0, 1.0, 0.0]])
+
+_JOINT_WORD = {JointType.FIXED: "static", JointType.REVOLUTE: "hinge", JointType.CONTINUOUS: "hinge",
+               JointType.PRISMATIC: "slider", JointType.SCREW: "slider"}
+
+
+def _rpy_matrix(r: float, p: float, y: float) -> np.ndarray:
+    cr, sr, cp, sp, cy, sy = math.cos(r), math.sin(r), math.cos(p), math.sin(p), math.cos(y), math.sin(y)
+    Rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
+    Ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
+    Rz = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
+    return Rz @ Ry @ Rx
+
+
+def _translation(xyz) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, 3] = xyz
+    return T
+
+
+# =============================================================================================
+# writer
+# =============================================================================================
+def write_partnet(obj: ArticulatedObject, folder: os.PathLike, *,
+                  descriptions: Optional[dict] = None, extra_meta: Optional[dict] = None) -> Path:
+    """Write ``obj`` as a PartNet-Mobility folder (z-up, marked in meta.json). Returns the folder."""
+    import yourdfpy
+    from lxml import etree
+
+    obj.validate()
+    folder = Path(folder)
+    (folder / "textured_objs").mkdir(parents=True, exist_ok=True)
+    n = len(obj.parts)
+    link = {i: f"link_{i}" for i in range(n)}
+    links = [yourdfpy.Link(name="base")]
+    joints = []
+    v2 = []
+    sem_lines = []
+    for i, p in enumerate(obj.parts):
+        o = p.joint.origin if p.joint.type != JointType.FIXED else np.zeros(3)
+        # Fixed joints keep their link frame at their parent's frame: origin = frame position.
+        frame = _frame_pos(obj, i)
+        frame_par = _frame_pos(obj, p.parent) if p.parent >= 0 else np.zeros(3)
+        visuals, collisions = [], []
+        if p.mesh is not None and len(p.mesh.faces):
+            fname = f"textured_objs/original-{i}.obj"
+            atomic_write_bytes(folder / fname, _obj_bytes(p.mesh))
+            geo = yourdfpy.Geometry(mesh=yourdfpy.Mesh(filename=fname))
+            visuals.append(yourdfpy.Visual(name=f"{p.label}-{i}", origin=_translation(-frame), geometry=geo))
+            collisions.append(yourdfpy.Collision(name=f"{p.label}-{i}", origin=_translation(-frame), geometry=geo))
+        parent_link = "base" if p.parent < 0 else link[p.parent]
+        jt = p.joint.type
+        lim = None
+        axis = np.asarray(p.joint.axis, dtype=np.float64)
+        origin = _translation(frame - frame_par)
+        if jt == JointType.SCREW:
+            helper = f"{link[i]}_helper"
+            links.append(yourdfpy.Link(name=helper))
+            joints.append(yourdfpy.Joint(name=f"joint_{i}_slide", type="prismatic", parent=parent_link,
+                                         child=helper, origin=origin, axis=axis,
+                                         limit=yourdfpy.Limit(effort=p.joint.effort, velocity=p.joint.velocity,
+                                                              lower=p.joint.t_range[0], upper=p.joint.t_range[1])))
+            joints.append(yourdfpy.Joint(name=f"joint_{i}", type="revolute", parent=helper, child=link[i],
+                                         origin=np.eye(4), axis=axis,
+                                         limit=yourdfpy.Limit(effort=p.joint.effort, velocity=p.joint.velocity,
+                                                              lower=p.joint.r_range[0], upper=p.joint.r_range[1])))
+        else:
+            urdf_type = {JointType.FIXED: "fixed", JointType.REVOLUTE: "revolute",
+                         JointType.PRISMATIC: "prismatic", JointType.CONTINUOUS: "continuous"}[jt]
+            if jt in (JointType.REVOLUTE, JointType.PRISMATIC):
+                lo, hi = p.joint.r_range if jt == JointType.REVOLUTE else p.joint.t_range
+                lim = yourdfpy.Limit(effort=p.joint.effort, velocity=p.joint.velocity, lower=lo, upper=hi)
+            elif jt == JointType.CONTINUOUS:
+                lim = yourdfpy.Limit(effort=p.joint.effort, velocity=p.joint.velocity)
+            joints.append(yourdfpy.Joint(name=f"joint_{i}", type=urdf_type, parent=parent_link, child=link[i],
+                                         origin=origin, axis=axis if jt != JointType.FIXED else None, limit=lim))
+        links.append(yourdfpy.Link(name=link[i], visuals=visuals, collisions=collisions))
+        v2.append(_v2_entry(i, p, o))
+        sem_lines.append(f"{link[i]} {_JOINT_WORD[jt]} {p.label}")
+    robot = yourdfpy.Robot(name=obj.name, links=links, joints=joints)
+    urdf = yourdfpy.URDF(robot=robot, build_scene_graph=False, load_meshes=False,
+                         filename_handler=lambda fname: str(folder / fname))
+    xml = etree.tostring(urdf.write_xml(), encoding="unicode", pretty_print=True)
+    atomic_write_bytes(folder / "mobility.urdf", xml.encode())
+    atomic_write_json(folder / "mobility_v2.json", v2)
+    atomic_write_bytes(folder / "semantics.txt", ("\n".join(sem_lines) + "\n").encode())
+    meta = {"model_cat": obj.category, "up_axis": "z", "front_axis": "+x", "units": "m",
+            "source": "artformer_ros procedural generator", "name": obj.name,
+            "part_names": {link[i]: p.name for i, p in enumerate(obj.parts)},
+            "metadata": _jsonable(obj.metadata)}
+    meta.update(extra_meta or {})
+    atomic_write_json(folder / "meta.json", meta)
+    if descriptions is not None:
+        atomic_write_json(folder / "descriptions.json", {"descriptions": descriptions, "summary": obj.summary()})
+    return folder
+
+
+def _frame_pos(obj: ArticulatedObject, i: int) -> np.ndarray:
+    """Link frame position (object frame at rest): the joint origin of the nearest moving
+    joint on the way to the root, or 0."""
+    while i >= 0:
+        p = obj.parts[i]
+        if p.joint.type != JointType.FIXED:
+            return np.asarray(p.joint.origin, dtype=np.float64)
+        i = p.parent
+    return np.zeros(3)
+
+
+def _v2_entry(i: int, p: Part, origin: np.ndarray) -> dict:
+    j = p.joint
+    jt = j.type
+    entry = {"id": i, "parent": p.parent, "joint": _JOINT_WORD[jt], "name": p.label,
+             "parts": [{"id": i, "name": p.label, "children": []}], "jointData": {}}
+    if jt != JointType.FIXED:
+        limit: dict = {"a": 0.0, "b": 0.0, "noLimit": jt == JointType.CONTINUOUS}
+        if jt in (JointType.REVOLUTE, JointType.CONTINUOUS):
+            limit["a"], limit["b"] = math.degrees(j.r_range[0]), math.degrees(j.r_range[1])
+        else:
+            limit["a"], limit["b"] = j.t_range
+            limit["rotates"] = jt == JointType.SCREW
+            if jt == JointType.SCREW:
+                limit["rotates_limit"] = {"a": math.degrees(j.r_range[0]), "b": math.degrees(j.r_range[1]),
+                                          "noLimit": False}
+        entry["jointData"] = {"axis": {"origin": [float(x) for x in origin],
+                                       "direction": [float(x) for x in j.axis]}, "limit": limit}
+    return entry
+
+
+def _obj_bytes(mesh) -> bytes:
+    V = np.asarray(mesh.vertices)
+    F = np.asarray(mesh.faces) + 1
+    lines = ["# artformer_ros part mesh (metres, object frame at rest)"]
+    lines += [f"v {x:.6f} {y:.6f} {z:.6f}" for x, y, z in V]
+    lines += [f"f {a} {b} {c}" for a, b, c in F]
+    return ("\n".join(lines) + "\n").encode()
+
+
+def _jsonable(x):
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    if isinstance(x, (np.integer,)):
+        return int(x)
+    if isinstance(x, (np.floating,)):
+        return float(x)
+    return x
+
+
+# =============================================================================================
+# loader
+# =============================================================================================
+class PartNetFormatError(ValueError):
+    """The folder is not a readable PartNet-Mobility object; the message says what is missing."""
+
+
+def _parse_origin(el) -> np.ndarray:
+    T = np.eye(4)
+    if el is None:
+        return T
+    xyz = [float(v) for v in (el.get("xyz") or "0 0 0").split()]
+    rpy = [float(v) for v in (el.get("rpy") or "0 0 0").split()]
+    T[:3, :3] = _rpy_matrix(*rpy)
+    T[:3, 3] = xyz
+    return T
+
+
+def _read_urdf(path: Path) -> tuple[dict, list[dict]]:
+    from lxml import etree
+    try:
+        root = etree.parse(str(path), etree.XMLParser(remove_comments=True, recover=True)).getroot()
+    except (etree.XMLSyntaxError, OSError) as e:
+        raise PartNetFormatError(f"{path}: cannot parse URDF: {e}") from e
+    if root is None:
+        raise PartNetFormatError(f"{path}: empty URDF")
+    links: dict[str, list[tuple[np.ndarray, str]]] = {}
+    for ln in root.findall("link"):
+        vis = []
+        for v in ln.findall("visual"):
+            mesh = v.find("geometry/mesh")
+            if mesh is not None and mesh.get("filename"):
+                vis.append((_parse_origin(v.find("origin")), mesh.get("filename")))
+        links[ln.get("name")] = vis
+    joints = []
+    for j in root.findall("joint"):
+        par, ch = j.find("parent"), j.find("child")
+        if par is None or ch is None:
+            log.warning("%s: joint %s without parent/child skipped", path, j.get("name"))
+            continue
+        ax = j.find("axis")
+        axis = np.array([float(v) for v in ax.get("xyz").split()]) if ax is not None and ax.get("xyz") else np.array([1.0, 0, 0])
+        lim = j.find("limit")
+        lo = float(lim.get("lower", 0.0)) if lim is not None else 0.0
+        hi = float(lim.get("upper", 0.0)) if lim is not None else 0.0
+        joints.append({"name": j.get("name"), "type": (j.get("type") or "fixed").lower(),
+                       "parent": par.get("link"), "child": ch.get("link"),
+                       "origin": _parse_origin(j.find("origin")), "axis": axis, "lower": lo, "upper": hi})
+    return links, joints
+
+
+def _load_pieces(folder: Path, files: list[tuple[np.ndarray, str]]):
+    """Load and transform every OBJ piece of a link; concatenate. None if nothing loads."""
+    import trimesh
+    pieces = []
+    for T, fname in files:
+        fname = fname.replace("package://", "")
+        path = (folder / fname) if not os.path.isabs(fname) else Path(fname)
+        if not path.exists():
+            log.warning("%s: mesh %s missing, skipped", folder, fname)
+            continue
+        try:
+            m = trimesh.load(str(path), force="mesh", process=False, skip_materials=True)
+        except Exception as e:  # a broken piece must not sink the object
+            log.warning("%s: cannot read %s (%s), skipped", folder, fname, e)
+            continue
+        if m is None or len(getattr(m, "faces", [])) == 0:
+            continue
+        m = trimesh.Trimesh(vertices=np.asarray(m.vertices, dtype=np.float64), faces=np.asarray(m.faces),
+                            process=False)
+        m.apply_transform(T)
+        pieces.append(m)
+    if not pieces:
+        return None
+    merged = trimesh.util.concatenate(pieces) if len(pieces) > 1 else pieces[0]
+    merged.merge_vertices()
+    return merged
+
+
+def _read_json(path: Path):
+    if not path.exists():
+        return None
+    try:
+        with open(path) as f:
+            return json.load(f)
+    except (OSError, json.JSONDecodeError) as e:
+        log.warning("%s: unreadable (%s), ignored", path, e)
+        return None
+
+
+def load_partnet(folder: os.PathLike, up_axis: str = "auto") -> ArticulatedObject:
+    """Read one PartNet-Mobility object folder into an ArticulatedObject (z-up, object frame).
+
+    up_axis: "auto" (meta.json's ``up_axis``, default "y" as in the real dataset), "y" or "z".
+    Descriptions, when present, land in ``obj.metadata["descriptions"]``.
+    """
+    folder = Path(folder)
+    urdf_path = folder / "mobility.urdf"
+    if not urdf_path.exists():
+        raise PartNetFormatError(f"{folder}: no mobility.urdf")
+    meta = _read_json(folder / "meta.json") or {}
+    if up_axis == "auto":
+        up_axis = str(meta.get("up_axis", "y")).lower()
+    if up_axis not in ("y", "z"):
+        raise PartNetFormatError(f"{folder}: up_axis must be y or z, got {up_axis!r}")
+    links, joints = _read_urdf(urdf_path)
+    child_of = {j["child"]: j for j in joints}
+    roots = [ln for ln in links if ln not in child_of]
+    if len(roots) != 1:
+        raise PartNetFormatError(f"{folder}: URDF must have one root link, found {roots}")
+    root = roots[0]
+    empty_root = not links[root]
+    # rest-pose world transform of each link
+    R_conv = Y_UP_TO_Z_UP if up_axis == "y" else np.eye(3)
+    C = np.eye(4)
+    C[:3, :3] = R_conv
+    world: dict[str, np.ndarray] = {root: C}
+    joint_frame: dict[str, np.ndarray] = {}
+    pending = [root]
+    children: dict[str, list[dict]] = {}
+    for j in joints:
+        children.setdefault(j["parent"], []).append(j)
+    while pending:
+        ln = pending.pop()
+        for j in children.get(ln, []):
+            origin = j["origin"]
+            if up_axis == "y" and ln == root and empty_root:
+                origin = np.eye(4)   # the dataset's own y-up → z-up turn; we apply R_conv instead
+            F = world[ln] @ origin
+            joint_frame[j["child"]] = F
+            world[j["child"]] = F
+            if j["child"] in world and j["child"] in pending:
+                raise PartNetFormatError(f"{folder}: cycle in URDF at {j['child']}")
+            pending.append(j["child"])
+    # semantics: mobility_v2.json ids ↔ link_<id>; semantics.txt as fallback
+    v2 = _read_json(folder / "mobility_v2.json")
+    v2_by_link = {}
+    if isinstance(v2, list):
+        for e in v2:
+            if isinstance(e, dict) and "id" in e:
+                v2_by_link[f"link_{e['id']}"] = e
+    sem = {}
+    if (folder / "semantics.txt").exists():
+        for line in (folder / "semantics.txt").read_text(errors="replace").splitlines():
+            bits = line.split()
+            if len(bits) >= 3:
+                sem[bits[0]] = (bits[1], bits[2])
+    names_meta = meta.get("part_names", {}) if isinstance(meta.get("part_names"), dict) else {}
+
+    # screw helpers: a link without visuals between a prismatic and a rotating joint, same axis
+    helper_of: dict[str, dict] = {}
+    for ln, vis in links.items():
+        if vis or ln == root or ln not in child_of:
+            continue
+        up = child_of[ln]
+        downs = children.get(ln, [])
+        if up["type"] == "prismatic" and len(downs) == 1 and downs[0]["type"] in ("revolute", "continuous"):
+            a1 = joint_frame[ln][:3, :3] @ up["axis"]
+            a2 = joint_frame[downs[0]["child"]][:3, :3] @ downs[0]["axis"]
+            if abs(abs(np.dot(a1, a2)) - np.linalg.norm(a1) * np.linalg.norm(a2)) < 1e-6:
+                helper_of[downs[0]["child"]] = up
+
+    order: list[str] = []
+    stack = [root]
+    while stack:  # depth-first, keep URDF order
+        ln = stack.pop(0)
+        order.append(ln)
+        stack = [j["child"] for j in children.get(ln, [])] + stack
+    keep = [ln for ln in order if ln != root or not empty_root]
+    helpers = {child_of[c]["parent"] for c in helper_of}
+    # links without geometry: screw helpers fold into their child; fixed ones vanish (their
+    # children attach to the nearest kept ancestor); moving ones stay as mesh-less parts.
+    keep = [ln for ln in keep if ln not in helpers and
+            (links[ln] or ln == root or child_of[ln]["type"] not in ("fixed", "floating", "planar"))]
+    parts: list[Part] = []
+    index: dict[str, int] = {}
+    label_count: dict[str, int] = {}
+    for ln in keep:
+        mesh = _load_pieces(folder, links[ln])
+        if mesh is not None:
+            mesh.apply_transform(world[ln])
+        # label
+        label = None
+        if ln in v2_by_link and v2_by_link[ln].get("name"):
+            label = vocab.map_partnet_label(str(v2_by_link[ln]["name"]))
+        elif ln in sem:
+            label = vocab.map_partnet_label(sem[ln][1])
+        else:
+            label = vocab.map_partnet_label(ln)
+        if ln == root or (ln in child_of and child_of[ln]["parent"] == root and empty_root and
+                          child_of[ln]["type"] == "fixed" and label == "other"):
+            label = "body" if label == "other" else label
+        name = names_meta.get(ln)
+        if not name:
+            k = label_count.get(label, 0)
+            label_count[label] = k + 1
+            name = f"{label}_{k}"
+        joint = _joint_of(ln, child_of, helper_of, joint_frame, v2_by_link, folder)
+        # parent: nearest kept ancestor (helpers / dropped links are skipped)
+        par = -1
+        up = child_of.get(ln)
+        while up is not None:
+            pl = up["parent"]
+            if pl in index:
+                par = index[pl]
+                break
+            up = child_of.get(pl)
+        index[ln] = len(parts)
+        parts.append(Part(name=name, label=label, parent=par, joint=joint, mesh=mesh))
+    if not parts:
+        raise PartNetFormatError(f"{folder}: no parts with geometry")
+    _single_root(parts)
+    for p in parts:
+        p.fit_bbox_to_mesh()
+    obj = ArticulatedObject(parts=parts, category=str(meta.get("model_cat", meta.get("category", ""))),
+                            name=str(meta.get("name", folder.name)))
+    if up_axis == "y":
+        _place_on_floor(obj)
+    texts = _read_json(folder / "descriptions.json")
+    if isinstance(texts, dict) and "descriptions" in texts:
+        obj.metadata["descriptions"] = texts["descriptions"]
+    else:
+        for fname in ("descriptions.txt", "description.txt", "text.txt"):
+            if (folder / fname).exists():
+                lines = [x.strip() for x in (folder / fname).read_text(errors="replace").splitlines() if x.strip()]
+                if lines:
+                    obj.metadata["descriptions"] = {"sentence": lines}
+                break
+    obj.metadata["source"] = str(folder)
+    obj.metadata["up_axis"] = up_axis
+    if isinstance(meta.get("metadata"), dict):
+        for k, v in meta["metadata"].items():
+            obj.metadata.setdefault(k, v)
+    return obj.validate()
+
+
+def _joint_of(ln, child_of, helper_of, joint_frame, v2_by_link, folder) -> Joint:
+    j = child_of.get(ln)
+    if j is None:
+        return Joint()
+    F = joint_frame[ln]
+    origin = F[:3, 3].copy()
+    t = j["type"]
+    axis = F[:3, :3] @ j["axis"]
+    n = np.linalg.norm(axis)
+    axis = axis / n if n > 1e-9 else np.array([0.0, 0.0, 1.0])
+    lo, hi = sorted((j["lower"], j["upper"]))
+    if ln in helper_of:
+        up = helper_of[ln]
+        tlo, thi = sorted((up["lower"], up["upper"]))
+        if t == "continuous":
+            lo, hi = 0.0, 2 * math.pi
+        return Joint(JointType.SCREW, origin, axis, t_range=(tlo, thi), r_range=(lo, hi))
+    e = v2_by_link.get(ln, {})
+    limit = (e.get("jointData") or {}).get("limit") or {}
+    if t == "prismatic" and limit.get("rotates"):
+        rl = limit.get("rotates_limit") or {}
+        if rl.get("noLimit", True) or "a" not in rl:
+            rr = (0.0, 2 * math.pi)
+        else:
+            rr = tuple(sorted((math.radians(float(rl["a"])), math.radians(float(rl["b"])))))
+        return Joint(JointType.SCREW, origin, axis, t_range=(lo, hi), r_range=rr)
+    if t == "revolute":
+        return Joint(JointType.REVOLUTE, origin, axis, r_range=(lo, hi))
+    if t == "continuous":
+        return Joint(JointType.CONTINUOUS, origin, axis, r_range=(0.0, 2 * math.pi))
+    if t == "prismatic":
+        return Joint(JointType.PRISMATIC, origin, axis, t_range=(lo, hi))
+    if t != "fixed":
+        log.info("%s: %s joint of %s read as fixed", folder, t, ln)
+    return Joint()
+
+
+def _single_root(parts: list[Part]) -> None:
+    """Several parts hanging off the (dropped) empty base: keep the largest fixed one as the
+    root and attach the others to it (joints are in the object frame, so nothing moves)."""
+    roots = [i for i, p in enumerate(parts) if p.parent < 0]
+    if len(roots) <= 1:
+        if roots and parts[roots[0]].joint.type != JointType.FIXED:
+            parts[roots[0]].joint = Joint()
+        return
+
+    def size(i):
+        m = parts[i].mesh
+        return float(np.prod(np.ptp(m.vertices, axis=0) + 1e-9)) if m is not None and len(m.vertices) else 0.0
+    fixed = [i for i in roots if parts[i].joint.type == JointType.FIXED] or roots
+    main = max(fixed, key=size)
+    parts[main].joint = Joint()
+    for i in roots:
+        if i != main:
+            parts[i].parent = main
+
+
+def _place_on_floor(obj: ArticulatedObject) -> None:
+    meshes = [p.mesh for p in obj.parts if p.mesh is not None and len(p.mesh.vertices)]
+    if not meshes:
+        return
+    lo = np.min([m.bounds[0] for m in meshes], axis=0)
+    hi = np.max([m.bounds[1] for m in meshes], axis=0)
+    shift = np.array([-(lo[0] + hi[0]) / 2, -(lo[1] + hi[1]) / 2, -lo[2]])
+    for p in obj.parts:
+        if p.mesh is not None:
+            p.mesh.apply_translation(shift)
+        if p.joint.type != JointType.FIXED:
+            p.joint.origin = p.joint.origin + shift
+
+
+def find_object_folders(root: os.PathLike) -> list[Path]:
+    """Object folders (containing mobility.urdf) under ``root`` (itself or any depth), sorted."""
+    root = Path(root)
+    if (root / "mobility.urdf").exists():
+        return [root]
+    return sorted(p.parent for p in root.rglob("mobility.urdf"))
+
+
+def iter_partnet_dataset(root: os.PathLike, up_axis: str = "auto") -> Iterator[tuple[Path, Optional[ArticulatedObject], Optional[str]]]:
+    """(folder, object or None, error or None) for every object folder; never raises per object."""
+    for folder in find_object_folders(root):
+        try:
+            yield folder, load_partnet(folder, up_axis), None
+        except Exception as e:  # one broken object must not stop a dataset pass
+            log.warning("%s: skipped (%s)", folder, e)
+            yield folder, None, f"{type(e).__name__}: {e}"
