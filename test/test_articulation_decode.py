@@ -134,7 +134,7 @@ def trained(tmp_path_factory):
     data, out = root / "data", root / "run"
     write_toy_dataset(data, n=20)
     rc = main(["train", "transformer", "--data", str(data), "--prior", "none", "--preset", "tiny",
-               "--out", str(out), "--steps", "30", "--no-progress", "--half", str(root / "h.pt")])
+               "--out", str(out), "--steps", "150", "--no-progress", "--half", str(root / "h.pt")])
     assert rc == 0
     return root, data, out
 
@@ -142,15 +142,15 @@ def trained(tmp_path_factory):
 def test_training_command_writes_resumable_checkpoints(trained):
     root, data, out = trained
     ck = read_checkpoint(out / "last.pt")
-    assert ck["step"] == 30 and "optimizer" in ck
+    assert ck["step"] == 150 and "optimizer" in ck
     assert ck["data_version"] == "toy1" and ck["seed"] == 0 and "--preset tiny" in ck["command"]
     hist = json.loads((out / "history.json").read_text())
     assert "val" in hist[-1] and np.isfinite(hist[-1]["val"]["total"])
     from model.articulation.commands import main
     assert main(["train", "transformer", "--data", str(data), "--prior", "none", "--preset",
-                 "tiny", "--out", str(out), "--steps", "40", "--resume", "--no-progress"]) == 0
+                 "tiny", "--out", str(out), "--steps", "160", "--resume", "--no-progress"]) == 0
     ck2 = read_checkpoint(out / "last.pt")
-    assert ck2["step"] == 40
+    assert ck2["step"] == 160
     assert len(ck2["history"]) > len(ck["history"])
 
 
@@ -188,14 +188,15 @@ def test_checkpoint_round_trip_and_fp16_copy(trained, tmp_path):
 
 
 def test_trained_tiny_model_learns_the_toy_structure(trained, tmp_path):
-    """Not a quality bar: the tiny run must beat chance on its own training distribution
-    enough to decode a bottle as a 2-part bottle with a screw cap at least sometimes."""
+    """Not a quality bar: 150 tiny steps must learn the category and joint types of its own
+    training objects (exact part counts need longer training)."""
     from model.articulation.evaluate import alignment_report
     root, data, out = trained
     rep = alignment_report(str(out / "transformer.pt"), str(data), split="train", limit=12,
                            progress=False, temperature=0.0)
     assert rep["prompts"] == 48 and 0.0 <= rep["alignment"] <= 1.0
-    assert rep["category"] > 0.5
+    assert rep["category"] > 0.8 and rep["joint_types"] > 0.8
+    assert "prompt_alignment" in rep and rep["prompt_checked"] == 48
 
 
 def test_prior_targets_from_geometry_checkpoints(tmp_path):

@@ -1,7 +1,8 @@
 """Structure alignment of a transformer checkpoint on a held-out split (the headline metric
 at tree level, before any geometry): for every object and description, decode one tree and
-check that it has the object's category, the count of every part label and the joint types
-of every label.
+check (1) ``alignment``: it has exactly the object's category, count of every part label
+(body included) and set of joint types per label; (2) ``prompt_alignment``: the project's
+metric (model.metrics.alignment) — the structure the prompt text asks for, parsed from it.
 
     artformer train transformer --eval CKPT --data data/prepared/v1 --split test
 """
@@ -56,6 +57,7 @@ def alignment_report(ckpt: str, data_root: str, *, split: str = "test",
             texts = rec.descriptions.get(L) or []
             if texts:   # first wording of each length: deterministic and comparable
                 jobs.append((rec, L, texts[0]))
+    prompt_check = _prompt_checker()
     rows = []
     rng = range(0, len(jobs), batch)
     if progress:
@@ -68,8 +70,12 @@ def alignment_report(ckpt: str, data_root: str, *, split: str = "test",
                           max_nodes=max_nodes, max_depth=max_depth, max_children=max_children)
         for (rec, L, text), tree in zip(chunk, trees):
             ok = compare(tree.summary(), record_structure(rec))
-            rows.append({"id": rec.id, "length": L, "text": text, **ok,
-                         "decoded": tree.summary(), "truth": record_structure(rec)})
+            row = {"id": rec.id, "length": L, "text": text, **ok,
+                   "decoded": tree.summary(), "truth": record_structure(rec)}
+            if prompt_check is not None:
+                res = prompt_check(text, tree)
+                row["prompt_checked"], row["prompt_aligned"] = res.checked, res.aligned
+            rows.append(row)
     def share(rs, key="all"):
         return float(np.mean([r[key] for r in rs])) if rs else float("nan")
     rep = {"checkpoint": str(ckpt), "data": str(data_root), "split": split,
@@ -78,4 +84,24 @@ def alignment_report(ckpt: str, data_root: str, *, split: str = "test",
            "counts": share(rows, "counts"), "joint_types": share(rows, "joint_types"),
            "by_length": {L: share([r for r in rows if r["length"] == L]) for L in lengths},
            "rows": rows}
+    checked = [r for r in rows if r.get("prompt_checked")]
+    if checked:   # the project's alignment metric: what the prompt text asks for
+        rep["prompt_alignment"] = share(checked, "prompt_aligned")
+        rep["prompt_checked"] = len(checked)
+        rep["prompt_by_length"] = {L: share([r for r in checked if r["length"] == L],
+                                            "prompt_aligned") for L in lengths}
     return rep
+
+
+def _prompt_checker():
+    """model.metrics' prompt-parsing alignment check on a decoded tree, when available."""
+    try:
+        from model.metrics.alignment import GeneratedStructure, check_alignment
+        from model.metrics.prompt_parse import parse_prompt
+    except ImportError:   # metrics area not installed: report the ground-truth match only
+        return None
+
+    def check(text: str, tree):
+        got = GeneratedStructure.from_labels(tree.category or None, tree.labels, tree.joint_types)
+        return check_alignment(parse_prompt(text), got)
+    return check
