@@ -1,0 +1,126 @@
+"""`artformer generate` and `artformer edit`."""
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import sys
+from pathlib import Path
+
+
+def _model_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--checkpoint", default=None,
+                   help="folder with transformer*.pt, sdf*.pt, prior*.pt [, image*.pt] "
+                        "(default: the shipped model in model/weights)")
+    p.add_argument("--seed", type=int, default=0, help="sample i uses seed+i (default 0)")
+    p.add_argument("--samples", type=int, default=1, help="objects to generate (default 1)")
+    p.add_argument("--resolution", type=int, default=64, help="marching-cubes grid per part (64)")
+    p.add_argument("--steps", type=int, default=50, help="DDIM steps of the shape prior (50)")
+    p.add_argument("--guidance", type=float, default=1.0, help="classifier-free guidance (1 = off)")
+    p.add_argument("--geometry", choices=("generate", "retrieve"), default="generate",
+                   help="diffuse new part shapes, or retrieve the nearest training part")
+    p.add_argument("--format", dest="mesh_format", choices=("obj", "stl", "glb"), default="obj")
+    p.add_argument("--threads", type=int, default=2, help="torch CPU threads (2)")
+    p.add_argument("--no-preview", action="store_true", help="skip preview.png")
+    p.add_argument("--mesh-uri", default="file",
+                   help="'file' (absolute file:// paths) or a package:// prefix for mesh URIs")
+    p.add_argument("--json", action="store_true", help="print the result as JSON")
+    p.add_argument("-v", "--verbose", action="store_true")
+
+
+def _config(a):
+    from model.pipeline.api import GenerationConfig
+    return GenerationConfig(checkpoint=a.checkpoint, resolution=a.resolution, steps=a.steps,
+                            guidance=a.guidance, geometry=a.geometry, mesh_format=a.mesh_format,
+                            threads=a.threads)
+
+
+def _report(outs, results, as_json: bool) -> None:
+    rows = []
+    for o, r in zip(outs, results):
+        rows.append({"prompt": r.prompt, "seed": r.seed, "category": r.obj.category,
+                     "parts": [f"{p.name}:{p.label}:{p.joint.type.name.lower()}" for p in r.obj.parts],
+                     "urdf": o.urdf_path, "meshes": str(Path(o.out_dir) / "meshes"),
+                     "preview": o.preview_path,
+                     "timings_s": {k: round(v, 4) for k, v in r.timings.items()}})
+    if as_json:
+        print(json.dumps(rows if len(rows) > 1 else rows[0], indent=1))
+        return
+    for row in rows:
+        total = sum(row["timings_s"].values())
+        print(f"{row['category'] or 'object'} (seed {row['seed']}): {len(row['parts'])} parts, "
+              f"{total:.2f} s")
+        print(f"  URDF:    {row['urdf']}")
+        print(f"  meshes:  {row['meshes']}")
+        if row["preview"]:
+            print(f"  preview: {row['preview']}")
+
+
+def _generate(argv: list[str]) -> int:
+    p = argparse.ArgumentParser(prog="artformer generate",
+                                description="Text (or an image) -> articulated object: URDF + meshes.")
+    p.add_argument("text", nargs="?", help="description of the object")
+    p.add_argument("--image", help="an image file instead of a text")
+    p.add_argument("--out", required=True, help="output folder (sample_<i>/ inside when --samples > 1)")
+    _model_args(p)
+    a = p.parse_args(argv)
+    logging.basicConfig(level=logging.INFO if a.verbose else logging.WARNING,
+                        format="%(levelname)s %(name)s: %(message)s")
+    if (a.text is None) == (a.image is None):
+        p.error("give a TEXT or --image (exactly one)")
+    from model.pipeline.api import GenerationError
+    from model.pipeline.generator import Generator
+    try:
+        gen = Generator.load(_config(a))
+        results = gen.generate(a.text, image=a.image, seed=a.seed, samples=a.samples)
+        outs = []
+        for i, r in enumerate(results):
+            d = Path(a.out) if len(results) == 1 else Path(a.out) / f"sample_{i}"
+            outs.append(gen.export(r, d, preview=not a.no_preview, mesh_uri=a.mesh_uri))
+    except GenerationError as e:
+        print(f"artformer generate: {e}", file=sys.stderr)
+        return 1
+    _report(outs, results, a.json)
+    return 0
+
+
+def _edit(argv: list[str]) -> int:
+    p = argparse.ArgumentParser(
+        prog="artformer edit",
+        description="Remove parts (with their subtrees) from a URDF and regenerate the missing "
+                    "parts from a text; kept parts keep their meshes and joints.")
+    p.add_argument("urdf", help="input URDF (ours, or any URDF with meshes)")
+    p.add_argument("--remove", nargs="+", default=[], metavar="LINK",
+                   help="links to remove with their subtrees")
+    p.add_argument("--text", required=True, help="what the edited object should be")
+    p.add_argument("--out", required=True, help="output folder")
+    _model_args(p)
+    a = p.parse_args(argv)
+    logging.basicConfig(level=logging.INFO if a.verbose else logging.WARNING,
+                        format="%(levelname)s %(name)s: %(message)s")
+    from model.export import import_urdf
+    from model.pipeline.api import GenerationError
+    from model.pipeline.edit import remove_parts
+    from model.pipeline.generator import Generator
+    try:
+        obj = import_urdf(a.urdf)
+        kept = remove_parts(obj, a.remove)
+        gen = Generator.load(_config(a))
+        results = gen.generate(a.text, seed=a.seed, samples=a.samples, keep=kept)
+        outs = []
+        for i, r in enumerate(results):
+            d = Path(a.out) if len(results) == 1 else Path(a.out) / f"sample_{i}"
+            outs.append(gen.export(r, d, preview=not a.no_preview, mesh_uri=a.mesh_uri))
+    except (GenerationError, ValueError, KeyError, FileNotFoundError) as e:
+        print(f"artformer edit: {e}", file=sys.stderr)
+        return 1
+    _report(outs, results, a.json)
+    return 0
+
+
+def main(argv: list[str]) -> int:
+    if argv[0] == "generate":
+        return _generate(argv[1:])
+    if argv[0] == "edit":
+        return _edit(argv[1:])
+    raise SystemExit(f"unknown command {argv[0]!r}")

@@ -1,0 +1,331 @@
+"""End-to-end generation: condition → articulation tree → part latents → meshes → object.
+
+    gen = Generator.load(GenerationConfig())                 # the shipped small model
+    [res] = gen.generate("a cabinet with two drawers", seed=3)
+    out = gen.export(res, "out/cabinet")                     # URDF + meshes + preview
+
+Stages (timed into ``GeneratedObject.timings``, seconds): ``text_encoding`` (or
+``image_encoding``), ``decoding`` (iterative decoding of the tree), ``diffusion`` (DDIM over
+every part's latent, one batch per object), ``meshing`` (coarse-to-fine SDF + marching
+cubes, fitted to the predicted boxes); ``export`` is added by :meth:`Generator.export`.
+"""
+from __future__ import annotations
+
+import hashlib
+import logging
+import os
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Optional, Union
+
+import numpy as np
+
+from model.core import ArticulatedObject, ObjectValidationError
+from model.pipeline.api import (ExportResult, GeneratedObject, GenerationConfig,
+                                GenerationError)
+
+log = logging.getLogger(__name__)
+
+WEIGHTS_DIR = Path(__file__).resolve().parent.parent / "weights"
+STAGES = ("transformer", "sdf", "prior", "image")
+MAX_PROMPT_CHARS = 2000
+
+
+def find_checkpoints(folder: Union[str, os.PathLike, None]) -> dict[str, Optional[Path]]:
+    """Stage → checkpoint file in a folder (``<stage>.pt`` or the one ``<stage>_*.pt``).
+
+    The image stage is optional; the other three must exist.
+    """
+    root = Path(folder) if folder else WEIGHTS_DIR
+    if not root.is_dir():
+        raise GenerationError(f"checkpoint folder {root} does not exist; pass the folder that "
+                              f"holds transformer*.pt, sdf*.pt and prior*.pt")
+    found: dict[str, Optional[Path]] = {}
+    for stage in STAGES:
+        exact = root / f"{stage}.pt"
+        cands = [exact] if exact.exists() else sorted(root.glob(f"{stage}_*.pt"))
+        if len(cands) > 1:
+            raise GenerationError(f"{root} holds several {stage} checkpoints "
+                                  f"({[c.name for c in cands]}); keep one or name it {stage}.pt")
+        found[stage] = cands[0] if cands else None
+    missing = [s for s in STAGES[:3] if found[s] is None]
+    if missing:
+        raise GenerationError(f"{root} has no checkpoint for {missing}; train them with "
+                              f"`artformer train ...` or use the shipped model (no --checkpoint)")
+    return found
+
+
+def file_digest(path: Path, n: int = 12) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for chunk in iter(lambda: f.read(1 << 20), b""):
+            h.update(chunk)
+    return h.hexdigest()[:n]
+
+
+def check_prompt(text) -> str:
+    """Return the cleaned prompt or raise GenerationError saying what is wrong with it."""
+    if isinstance(text, bytes):
+        try:
+            text = text.decode("utf-8")
+        except UnicodeDecodeError as e:
+            raise GenerationError(f"prompt is not valid UTF-8 ({e.reason} at byte {e.start})") from None
+    if not isinstance(text, str):
+        raise GenerationError(f"prompt must be a string, got {type(text).__name__}")
+    clean = " ".join(text.split())
+    if not clean:
+        raise GenerationError("prompt is empty")
+    if len(clean) > MAX_PROMPT_CHARS:
+        raise GenerationError(f"prompt has {len(clean)} characters; the limit is {MAX_PROMPT_CHARS}")
+    return clean
+
+
+@dataclass
+class _Loaded:
+    paths: dict[str, Optional[Path]]
+    hashes: dict[str, str] = field(default_factory=dict)
+    load_seconds: float = 0.0
+
+
+class Generator:
+    """The three trained stages (+ the optional image model) and the generation loop."""
+
+    def __init__(self, config: GenerationConfig, articulation, shape, image_model=None,
+                 loaded: Optional[_Loaded] = None):
+        self.config = config
+        self.articulation = articulation   # model.articulation.ArticulationModel
+        self.shape = shape                 # model.geometry.ShapeModel
+        self.image_model = image_model     # model.imaging.model.ImageArticulationModel | None
+        self.loaded = loaded or _Loaded(paths={})
+
+    # -- loading ----------------------------------------------------------------------------
+    @classmethod
+    def load(cls, config: Optional[GenerationConfig] = None) -> "Generator":
+        import torch
+
+        from model.articulation import ArticulationModel
+        from model.geometry import ShapeModel
+
+        config = config or GenerationConfig()
+        validate_config(config)
+        torch.set_num_threads(max(1, int(config.threads)))
+        t0 = time.perf_counter()
+        paths = find_checkpoints(config.checkpoint)
+        try:
+            articulation = ArticulationModel.load(paths["transformer"])
+            shape = ShapeModel.load(paths["sdf"], paths["prior"])
+        except GenerationError:
+            raise
+        except Exception as e:  # corrupt / mismatched checkpoints: say which stage
+            raise GenerationError(f"could not load the model from {paths['transformer'].parent}: {e}") from e
+        image_model = None
+        if paths["image"] is not None:
+            try:
+                from model.imaging.model import load_image_model
+                image_model = load_image_model(paths["image"])
+            except Exception as e:
+                log.warning("image model %s not loaded (%s); image requests will be refused",
+                            paths["image"], e)
+        articulation.encode_text(["warm up"])   # load the text encoder now, not on request 1
+        loaded = _Loaded(paths=paths, hashes={k: file_digest(p) for k, p in paths.items() if p},
+                         load_seconds=time.perf_counter() - t0)
+        log.info("model loaded in %.2f s from %s", loaded.load_seconds, paths["transformer"].parent)
+        return cls(config, articulation, shape, image_model, loaded)
+
+    @property
+    def supports_image(self) -> bool:
+        return self.image_model is not None
+
+    # -- generation -------------------------------------------------------------------------
+    def generate(self, text: Optional[str] = None, *, image=None, seed: int = 0, samples: int = 1,
+                 keep: Optional[ArticulatedObject] = None) -> list[GeneratedObject]:
+        """Generate ``samples`` objects for a text or an image (not both).
+
+        Sample i uses seed ``seed + i`` everywhere, so the same seed gives the same object.
+        ``keep`` (editing): the decoded trees start from this object's parts, which keep their
+        meshes; only new parts get geometry.
+        """
+        import torch
+
+        if (text is None) == (image is None):
+            raise GenerationError("give a text or an image (exactly one)")
+        if not 1 <= int(samples) <= 16:
+            raise GenerationError(f"samples must be between 1 and 16, got {samples}")
+        seed = int(seed)
+        cfg = self.config
+        timings: dict[str, float] = {}
+        t = time.perf_counter()
+        if text is not None:
+            prompt = check_prompt(text)
+            cond, mask = self.articulation.encode_text([prompt])           # (1, L, D), (1, L)
+            modality, decoder = "text", self.articulation
+            timings["text_encoding"] = time.perf_counter() - t
+        else:
+            if self.image_model is None:
+                raise GenerationError("this model has no image stage (no image*.pt checkpoint)")
+            from model.encoders.image import ImageInputError
+            try:
+                cond, mask = self.image_model.encode(image)                 # (1, 49, 1280)
+            except ImageInputError as e:
+                raise GenerationError(f"bad image: {e}") from e
+            prompt = image if isinstance(image, str) else "<image>"
+            modality, decoder = "image", self.image_model.am
+            timings["image_encoding"] = time.perf_counter() - t
+
+        t = time.perf_counter()
+        S = int(samples)
+        trees = decoder.decode(cond.expand(S, -1, -1), mask.expand(S, -1), seed=seed,
+                               max_nodes=cfg.max_nodes, max_depth=cfg.max_depth,
+                               max_children=cfg.max_children, modality=modality, keep=keep)
+        timings["decoding"] = (time.perf_counter() - t) / S
+
+        results = []
+        for i, tree in enumerate(trees):
+            tim = dict(timings)
+            gen = torch.Generator().manual_seed(seed + i)
+            obj = self._geometry(tree, gen, tim, keep)
+            obj.name = _object_name(obj.category, seed + i)
+            obj.metadata.update(prompt=prompt, seed=seed + i, modality=modality)
+            results.append(GeneratedObject(obj=obj, prompt=prompt, seed=seed + i, timings=tim))
+        return results
+
+    def _geometry(self, tree, gen, timings: dict, keep: Optional[ArticulatedObject]) -> ArticulatedObject:
+        """Latents for every new part in one batch, meshes fitted to the predicted boxes."""
+        import torch
+        import trimesh
+
+        from model.geometry import fit_to_bbox
+        from model.geometry.data import label_text
+
+        cfg = self.config
+        obj = tree.to_object()
+        new = [k for k in range(tree.num_nodes) if not (len(tree.kept) and tree.kept[k])]
+        texts = [label_text(tree.category, tree.labels[k]) for k in new]
+        t = time.perf_counter()
+        if new:
+            if tree.P_logits is None:      # the no-shape-prior ablation regresses z directly
+                z = torch.as_tensor(tree.z[new], dtype=torch.float32)
+            else:
+                P = torch.as_tensor(tree.P_logits[new], dtype=torch.float32)      # (K, C, N)
+                cs = torch.as_tensor(tree.cs[new], dtype=torch.float32)           # (K, 64)
+                z = self.shape.sample_from_logits(P, cs, steps=cfg.steps, tau=cfg.temperature,
+                                                  guidance=cfg.guidance, generator=gen)
+            if cfg.geometry == "retrieve":
+                z, _ = self.shape.retrieve(z, texts)
+        timings["diffusion"] = time.perf_counter() - t
+
+        t = time.perf_counter()
+        meshes = self.shape.decode_meshes(z, resolution=cfg.resolution) if new else []
+        fallbacks = []
+        for k, m in zip(new, meshes):
+            part = obj.parts[k]
+            if m.is_empty:
+                # No surface in the decoded field: keep the part usable as its box.
+                fallbacks.append(part.name)
+                m = trimesh.creation.box(extents=np.maximum(part.bbox_size, 1e-3))
+                m.apply_translation(part.bbox_center)
+            else:
+                m = fit_to_bbox(m, part.bbox_center, part.bbox_size)
+            part.mesh = m
+            part.latent = z[new.index(k)].numpy().copy()
+        if keep is not None:
+            for k in range(tree.num_nodes):
+                if len(tree.kept) and tree.kept[k]:
+                    src = keep.parts[int(tree.source_index[k])]
+                    obj.parts[k].mesh = src.mesh
+                    obj.parts[k].name = src.name
+                    obj.parts[k].joint = src.joint
+        timings["meshing"] = time.perf_counter() - t
+        if new and len(fallbacks) == len(new):
+            raise GenerationError("the shape prior produced no surface for any part")
+        if fallbacks:
+            log.warning("parts %s had no surface; exported as their boxes", fallbacks)
+        obj.metadata["box_fallback_parts"] = fallbacks
+        _unique_names(obj)
+        try:
+            obj.validate()
+        except ObjectValidationError as e:
+            raise GenerationError(f"generated object is invalid: {e}") from e
+        return obj
+
+    # -- export -----------------------------------------------------------------------------
+    def export(self, result: GeneratedObject, out_dir: Union[str, os.PathLike], *,
+               preview: bool = True, mesh_uri: str = "file") -> ExportResult:
+        from model.export import export_object
+
+        t = time.perf_counter()
+        prov = {"prompt": result.prompt, "seed": result.seed,
+                "model": {k: f"{p.name}@{self.loaded.hashes.get(k, '?')}"
+                          for k, p in self.loaded.paths.items() if p},
+                "config": asdict(self.config)}
+        out = export_object(result.obj, out_dir, mesh_format=self.config.mesh_format,
+                            provenance=prov, preview=preview, mesh_uri=mesh_uri)
+        result.timings["export"] = time.perf_counter() - t
+        return out
+
+
+def validate_config(cfg: GenerationConfig) -> None:
+    """Raise GenerationError naming the first bad field of a GenerationConfig."""
+    checks = [
+        (8 <= cfg.resolution <= 256, f"resolution must be in [8, 256], got {cfg.resolution}"),
+        (1 <= cfg.steps <= 1000, f"steps must be in [1, 1000], got {cfg.steps}"),
+        (cfg.guidance >= 0, f"guidance must be >= 0, got {cfg.guidance}"),
+        (cfg.temperature > 0, f"temperature must be > 0, got {cfg.temperature}"),
+        (cfg.geometry in ("generate", "retrieve"), f"geometry must be generate|retrieve, got {cfg.geometry!r}"),
+        (cfg.mesh_format in ("obj", "stl", "glb"), f"mesh_format must be obj|stl|glb, got {cfg.mesh_format!r}"),
+        (cfg.device == "cpu", f"device {cfg.device!r} is not supported; this build runs on the CPU"),
+        (1 <= cfg.threads <= 64, f"threads must be in [1, 64], got {cfg.threads}"),
+        (1 <= cfg.max_nodes <= 64, f"max_nodes must be in [1, 64], got {cfg.max_nodes}"),
+        (0 <= cfg.max_depth <= 16, f"max_depth must be in [0, 16], got {cfg.max_depth}"),
+        (0 <= cfg.max_children <= 64, f"max_children must be in [0, 64], got {cfg.max_children}"),
+    ]
+    for ok, msg in checks:
+        if not ok:
+            raise GenerationError(msg)
+
+
+def _object_name(category: str, seed: int) -> str:
+    slug = "".join(c if c.isalnum() else "_" for c in (category or "object").lower()).strip("_")
+    return f"{slug or 'object'}_s{seed}"
+
+
+def _unique_names(obj: ArticulatedObject) -> None:
+    seen: dict[str, int] = {}
+    for p in obj.parts:
+        base = p.name
+        if base in seen:
+            seen[base] += 1
+            p.name = f"{base}_{seen[base]}"
+        else:
+            seen[base] = 0
+
+
+_DEFAULT: dict[tuple, Generator] = {}
+
+
+def default_generator(config: Optional[GenerationConfig] = None) -> Generator:
+    """Process-wide cached Generator for a config (the shipped model by default)."""
+    config = config or GenerationConfig()
+    key = tuple(sorted(asdict(config).items()))
+    if key not in _DEFAULT:
+        _DEFAULT[key] = Generator.load(config)
+    return _DEFAULT[key]
+
+
+def generate_to_folder(text: Optional[str], out_dir: Union[str, os.PathLike], *, image=None,
+                       seed: int = 0, samples: int = 1,
+                       config: Optional[GenerationConfig] = None) -> list[ExportResult]:
+    """Convenience: generate and export each sample to ``out_dir`` (``sample_<i>`` when >1)."""
+    gen = default_generator(config)
+    results = gen.generate(text, image=image, seed=seed, samples=samples)
+    outs = []
+    for i, r in enumerate(results):
+        d = Path(out_dir) if len(results) == 1 else Path(out_dir) / f"sample_{i}"
+        outs.append(gen.export(r, d))
+    return outs
+
+
+__all__ = ["Generator", "default_generator", "generate_to_folder", "find_checkpoints",
+           "check_prompt", "validate_config"]
+
