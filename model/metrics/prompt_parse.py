@@ -61,7 +61,10 @@ EXTRA_MOTION = {
                   "pull out", "pulls out", "pulled out", "pull-out", "pullout", "on runners",
                   "on rails", "telescopic", "glides out", "glide out", "draws out",
                   "slides in and out", "retractable", "pops out", "extends out", "pushes in",
-                  "can be pushed in", "can be pulled out", "translates", "translating"),
+                  "can be pushed in", "can be pulled out", "translates", "translating",
+                  "pulls off", "pull off", "pulled off", "slide off", "comes off", "come off",
+                  "lifts off", "lift off", "press in", "presses in", "pressed in", "push in",
+                  "pushed in", "can be pressed", "can be pushed", "pressable", "pop off"),
     "revolute": ("hinge", "hinges", "hinged", "swing", "swings", "swinging", "swing open",
                  "swings open", "swings out", "pivot", "pivots", "pivoting", "flips open",
                  "flips up", "flip open", "flip-up", "folds down", "drops down", "swivel",
@@ -156,11 +159,18 @@ def _lexicon():
             + list(EXTRA_MOTION.items()):
         for w in words:
             motions.setdefault(w.lower(), set()).add(jt)
+    for table_name in ("LABEL_MOTION_SYNONYMS", "LABEL_MOTION_ADJECTIVES"):
+        for (_, jt), words in getattr(vocab, table_name, {}).items():
+            for w in words:
+                motions.setdefault(w.lower(), set()).add(jt)
     for w in GENERIC_ROTATION:
         motions.setdefault(w, set()).update(REVOLUTE_OR_CONTINUOUS)
     # The templates' "rotating"/"turning" adjectives also mean a generic rotation to a person.
     for w in ("rotating", "turning"):
         motions[w] = set(REVOLUTE_OR_CONTINUOUS)
+    for w, types in list(motions.items()):   # "the knobs turn without limit" (plural verb)
+        for v in _verb_variants(w):
+            motions.setdefault(v, set(types))
     for w, types in motions.items():
         add(w, "MOTION", frozenset(types))
     parts: dict[str, tuple[str, bool]] = {}
@@ -191,6 +201,24 @@ def _lexicon():
     return regex, table
 
 
+def _verb_variants(phrase: str) -> list[str]:
+    """Plural-subject forms of a 3rd-person motion phrase ("swings open" → "swing open")."""
+    words = phrase.split()
+    if not words:
+        return []
+    head, rest = words[0], words[1:]
+    out = []
+    if head == "is":
+        out.append(" ".join(["are"] + rest))
+    elif head == "does":
+        out.append(" ".join(["do"] + rest))
+    elif re.search(r"(sh|ch|x|ss)es$", head):
+        out.append(" ".join([head[:-2]] + rest))
+    elif head.endswith("s") and not head.endswith("ss") and len(head) > 3:
+        out.append(" ".join([head[:-1]] + rest))
+    return out
+
+
 def _tokenize(sentence: str) -> list[_Tok]:
     regex, table = _lexicon()
     toks = []
@@ -210,6 +238,7 @@ def _tokenize(sentence: str) -> list[_Tok]:
 
 def _sentences(text: str) -> list[str]:
     text = text.lower().replace("—", ", ").replace("–", ", ").replace("&", " and ")
+    text = re.sub(r"\(?\b[a-z]+[- ]style\b\)?", " ", text)   # "(knob style)" is a look, not a part
     text = re.sub(r"\s+", " ", text)
     return [s.strip() for s in re.split(r"[.!?\n]+", text) if s.strip()]
 
@@ -313,7 +342,7 @@ def parse_prompt(text: str) -> ExpectedStructure:
     """The structure a prompt asks for (see the module docstring)."""
     out = ExpectedStructure()
     mentions: list[_Mention] = []
-    motion_links: list[tuple[frozenset, str]] = []
+    motion_links: list[tuple[frozenset, str, bool]] = []
     last_part: str | None = None
     for si, sentence in enumerate(_sentences(text)):
         toks = _tokenize(sentence)
@@ -327,13 +356,13 @@ def parse_prompt(text: str) -> ExpectedStructure:
             pre: list = []
             _scan_quantifier(toks, k, m, pre)
             for types, _ in pre:
-                motion_links.append((types, t.value))
+                motion_links.append((types, t.value, False))
             for j in range(max(0, k - 5), k):
                 if toks[j].kind == "MOTION" and any(toks[j].value == p[0] for p in pre):
                     prefix_motion_at.add(j)
             own = _motion_in_phrase(t.text)
             if own:
-                motion_links.append((own, t.value))
+                motion_links.append((own, t.value, False))
             dist = _distributive_target(toks, k)
             if dist and dist != t.value and not m.zero and not m.dist_head:
                 m.dist_of = dist
@@ -355,7 +384,13 @@ def parse_prompt(text: str) -> ExpectedStructure:
                         target = toks[j].value
                         break
             if target is not None:
-                motion_links.append((t.value, target))
+                # "can turn without limit or rotate on a hinge": either is acceptable
+                j = k - 1
+                is_or = False
+                while j >= 0 and toks[j].kind != "PART":
+                    is_or |= toks[j].kind == "WORD" and toks[j].text == "or"
+                    j -= 1
+                motion_links.append((t.value, target, is_or))
         parts_here = [t.value for t in toks if t.kind == "PART"]
         if parts_here:
             last_part = parts_here[-1]
@@ -407,10 +442,12 @@ def parse_prompt(text: str) -> ExpectedStructure:
     out.counts, out.min_counts = exact, lower
 
     joint: dict[str, set] = {}
-    for types, label in motion_links:
+    for types, label, is_or in motion_links:
         if label not in countable:
             continue
-        if label in joint:
+        if label in joint and is_or:
+            joint[label] = joint[label] | set(types)
+        elif label in joint:
             both = joint[label] & set(types)
             joint[label] = both if both else joint[label] | set(types)
         else:

@@ -1,0 +1,151 @@
+"""`artformer eval ...` and `artformer bench ...` (``eval geometry`` / ``bench geometry`` are
+routed to the geometry package by model/cli.py)."""
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import sys
+from pathlib import Path
+
+# Eval sizes. `tiny` is the CI smoke run (minutes on a laptop CPU); `full` the DESIGN §7 one.
+EVAL_PRESETS: dict[str, dict] = {
+    "tiny": dict(n=3, n_freeform=3, points=256, poses=3, por_states=3, diversity_prompts=1,
+                 diversity_samples=2, steps=5, resolution=24),
+    "full": dict(),
+}
+
+
+def _eval_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="artformer eval",
+        description="Generate for the test prompts and free-form prompts, then score POR, "
+                    "MMD/COV/1-NNA (Instantiation Distance), alignment, diversity and validity "
+                    "against baselines (retrieval, the training set's floor, ablations). "
+                    "Writes results.json, results.md and PNG figures to --out.")
+    p.add_argument("--checkpoint", default="shipped",
+                   help="folder of the stage checkpoints, or 'shipped' (default)")
+    p.add_argument("--data", default=None,
+                   help="prepared dataset root (default: the pipeline's default dataset)")
+    p.add_argument("--split", default="test")
+    p.add_argument("--n", type=int, default=None, help="test prompts (records); default 20")
+    p.add_argument("--freeform", type=int, default=None, dest="n_freeform",
+                   help="how many free-form prompts (default: all shipped ones)")
+    p.add_argument("--freeform-file", default=None)
+    p.add_argument("--preset", choices=sorted(EVAL_PRESETS), default="full",
+                   help="eval sizes: tiny = CI smoke run, full = DESIGN §7 sizes")
+    p.add_argument("--out", default="eval_out")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--points", type=int, default=None, help="ID points per posed object (4096)")
+    p.add_argument("--poses", type=int, default=None, help="ID instantiations per object (10)")
+    p.add_argument("--por-states", type=int, default=None, help="POR openness states (10)")
+    p.add_argument("--diversity-prompts", type=int, default=None)
+    p.add_argument("--diversity-samples", type=int, default=None)
+    p.add_argument("--ablation", action="append", default=[], metavar="NAME=DIR",
+                   help="extra checkpoint scored as its own row (repeatable)")
+    p.add_argument("--no-retrieval", action="store_true")
+    p.add_argument("--no-floor", action="store_true")
+    p.add_argument("--no-validity", action="store_true")
+    p.add_argument("--no-plots", action="store_true")
+    p.add_argument("--workers", type=int, default=1, help="KD-tree query threads")
+    p.add_argument("--steps", type=int, default=None, help="DDIM steps override")
+    p.add_argument("--resolution", type=int, default=None, help="meshing resolution override")
+    p.add_argument("-v", "--verbose", action="store_true")
+    return p
+
+
+def _default_data() -> str | None:
+    """The dataset the pipeline trains on by default, if the data package names one."""
+    try:
+        from model.data import paths  # type: ignore
+        return str(paths.default_prepared())
+    except Exception:
+        return None
+
+
+def eval_main(argv: list[str]) -> int:
+    args = _eval_parser().parse_args(argv)
+    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
+                        format="%(levelname)s %(name)s: %(message)s")
+    from .evaluate import EvalConfig, run_eval
+    data = args.data or _default_data()
+    if not data:
+        print("artformer eval: give --data DIR (a prepared dataset, `artformer data prepare`)",
+              file=sys.stderr)
+        return 2
+    ablations = {}
+    for a in args.ablation:
+        if "=" not in a:
+            print(f"artformer eval: --ablation wants NAME=DIR, got {a!r}", file=sys.stderr)
+            return 2
+        k, v = a.split("=", 1)
+        ablations[k] = v
+    kw = dict(EVAL_PRESETS[args.preset])
+    for name in ("n", "n_freeform", "points", "poses", "por_states", "diversity_prompts",
+                 "diversity_samples", "steps", "resolution"):
+        v = getattr(args, name)
+        if v is not None:
+            kw[name] = v
+    cfg = EvalConfig(data=data, out=args.out, checkpoint=args.checkpoint, split=args.split,
+                     freeform_file=args.freeform_file, seed=args.seed, ablations=ablations,
+                     retrieval=not args.no_retrieval, train_floor=not args.no_floor,
+                     validity=not args.no_validity, workers=args.workers,
+                     plots=not args.no_plots, progress=True, **kw)
+    results = run_eval(cfg)
+    print((Path(cfg.out) / "results.md").read_text())
+    print(f"wrote {cfg.out}/results.json, results.md"
+          + (", " + ", ".join(Path(f).name for f in results.get("figures", [])) if results.get("figures") else "")
+          + f" in {results['seconds']:.0f} s")
+    return 0
+
+
+def _bench_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(
+        prog="artformer bench",
+        description="Per-stage generation timings (median / p95 over N prompts), model load "
+                    "time and peak memory (RSS high-water mark of a fresh process).")
+    p.add_argument("--n", type=int, default=20)
+    p.add_argument("--checkpoint", default="shipped")
+    p.add_argument("--out", default="bench.json")
+    p.add_argument("--md", default=None, help="also write the markdown table here")
+    p.add_argument("--threads", type=int, default=2)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--steps", type=int, default=None)
+    p.add_argument("--resolution", type=int, default=None)
+    p.add_argument("--no-export", action="store_true")
+    p.add_argument("--warmup", type=int, default=1)
+    p.add_argument("--prompts-file", default=None)
+    return p
+
+
+def bench_main(argv: list[str]) -> int:
+    args = _bench_parser().parse_args(argv)
+    from .bench import BenchConfig, run_bench
+    from .report import bench_markdown
+    cfg = BenchConfig(n=args.n, checkpoint=args.checkpoint, seed=args.seed, threads=args.threads,
+                      steps=args.steps, resolution=args.resolution, export=not args.no_export,
+                      prompts_file=args.prompts_file, warmup=args.warmup)
+    print(f"benchmarking {cfg.n} prompts in a fresh process ...", file=sys.stderr)
+    res = run_bench(cfg)
+    md = bench_markdown(res)
+    print(md)
+    Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+    Path(args.out).write_text(json.dumps(res, indent=1))
+    if args.md:
+        Path(args.md).write_text(md)
+    if res["failures"]:
+        print(f"{len(res['failures'])} prompt(s) failed: {res['failures'][:3]}", file=sys.stderr)
+    print(f"wrote {args.out}")
+    return 0
+
+
+def main(argv: list[str]) -> int:
+    if not argv:
+        print("usage: artformer eval|bench [...]", file=sys.stderr)
+        return 2
+    if argv[0] == "eval":
+        return eval_main(argv[1:])
+    if argv[0] == "bench":
+        return bench_main(argv[1:])
+    print(f"model.metrics.commands: unknown command {argv[0]!r}", file=sys.stderr)
+    return 2

@@ -1,0 +1,326 @@
+"""`artformer eval`: generate for the test prompts, score everything, write JSON / markdown / PNG.
+
+Rows of the results table (each a *method* producing one object per prompt):
+
+* ``model``          — the checkpoint under test (``shipped`` = the packaged model)
+* ``<ablation>``     — further checkpoints given with ``--ablation NAME=DIR`` (no_tpe, ...)
+* ``retrieval``      — the training object whose description embedding is nearest the prompt
+* ``train (floor)``  — a random training subset of the test set's size: the data's own
+  MMD / COV / 1-NNA floor (no prompts, so no alignment)
+* ``test (GT)``      — the reference objects themselves: their POR and how well their own
+  descriptions parse back to their structure (the ceiling of the alignment metric)
+
+Prompts: ``n`` test-split records (one description each, rotating over the four lengths)
+plus the hand-written free-form prompts (``prompts_freeform.txt``). MMD / COV / 1-NNA use the
+test prompts only (they have a reference object); POR, alignment and validity use all prompts.
+"""
+from __future__ import annotations
+
+import json
+import logging
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Callable, Optional
+
+import numpy as np
+
+from model.core import ArticulatedObject
+
+from . import alignment as al
+from .distribution import set_metrics
+from .instantiation import diversity as diversity_of
+from .instantiation import id_matrix, posed_clouds
+from .por import part_overlap_ratio
+from .reference import Dataset, Retriever, freeform_prompts, pick_description
+
+log = logging.getLogger(__name__)
+
+PUBLISHED = {  # DESIGN §7 anchors (PartNet-Mobility, not our data)
+    "ArtFormer (paper)": {"por": 0.709e-2, "mmd": 0.0292, "cov": 0.5213, "nna": 0.5266},
+    "CAGE (paper)": {"por": 0.251e-2},
+}
+
+
+@dataclass
+class EvalConfig:
+    data: str                                   # prepared dataset root
+    out: str = "eval_out"
+    checkpoint: Optional[str] = None            # None = shipped model
+    split: str = "test"
+    n: int = 20                                 # test prompts (records)
+    n_freeform: Optional[int] = None            # None = all shipped free-form prompts
+    freeform_file: Optional[str] = None
+    seed: int = 0
+    points: int = 4096                          # ID surface points per posed object
+    poses: int = 10                             # ID instantiations per object
+    por_states: int = 10
+    diversity_prompts: int = 4                  # prompts sampled several times
+    diversity_samples: int = 4
+    ablations: dict = field(default_factory=dict)   # name -> checkpoint folder
+    retrieval: bool = True
+    train_floor: bool = True
+    validity: bool = True
+    workers: int = 1                            # KD-tree query threads
+    steps: Optional[int] = None                 # generation overrides (None = config default)
+    resolution: Optional[int] = None
+    text_encoder: str = "all-minilm-l6-v2"
+    plots: bool = True
+    progress: bool = False
+
+
+# --------------------------------------------------------------------------------------------
+# one method's objects
+# --------------------------------------------------------------------------------------------
+@dataclass
+class MethodOutput:
+    name: str
+    objects: list                      # per prompt: ArticulatedObject or None (failed)
+    urdfs: list                        # per prompt: URDF path or None
+    prompts: list                      # per prompt text, or None (no prompt: train floor)
+    timings: list = field(default_factory=list)
+    errors: list = field(default_factory=list)
+    diversity_sets: list = field(default_factory=list)   # list of lists of objects
+    extra: dict = field(default_factory=dict)            # copied into the results row
+
+
+def _export(obj: ArticulatedObject, folder: Path) -> Optional[str]:
+    from model.export.urdf import export_object
+    try:
+        return export_object(obj, folder, preview=False).urdf_path
+    except Exception as e:
+        log.warning("export of %s failed: %s", obj.name, e)
+        return None
+
+
+def generate_method(name: str, checkpoint: Optional[str], prompts: list[str], cfg: EvalConfig,
+                    out_dir: Path, loader: Optional[Callable] = None) -> MethodOutput:
+    """Run the generator on every prompt (seed = cfg.seed + i), export each result."""
+    from model.pipeline.api import GenerationConfig
+    gcfg = GenerationConfig(checkpoint=checkpoint)
+    if cfg.steps is not None:
+        gcfg.steps = cfg.steps
+    if cfg.resolution is not None:
+        gcfg.resolution = cfg.resolution
+    if loader is None:
+        from model.pipeline import Generator
+        loader = Generator.load
+    gen = loader(gcfg)
+    res = MethodOutput(name, [], [], list(prompts))
+    it = list(enumerate(prompts))
+    if cfg.progress:
+        from tqdm import tqdm
+        it = tqdm(it, desc=f"generate [{name}]")
+    for i, prompt in it:
+        try:
+            g = gen.generate(prompt, seed=cfg.seed + i, samples=1)[0]
+        except Exception as e:
+            log.warning("[%s] prompt %d failed: %s", name, i, e)
+            res.objects.append(None)
+            res.urdfs.append(None)
+            res.errors.append(f"prompt {i}: {type(e).__name__}: {e}")
+            continue
+        res.objects.append(g.obj)
+        res.timings.append(dict(g.timings))
+        urdf = None
+        if cfg.validity:
+            try:
+                urdf = gen.export(g, str(out_dir / name / f"{i:03d}")).urdf_path
+            except Exception as e:
+                res.errors.append(f"export {i}: {type(e).__name__}: {e}")
+        res.urdfs.append(urdf)
+    for i, prompt in enumerate(prompts[:cfg.diversity_prompts]):
+        if cfg.diversity_samples < 2:
+            break
+        try:
+            samples = gen.generate(prompt, seed=cfg.seed + 1000 + i, samples=cfg.diversity_samples)
+            res.diversity_sets.append([s.obj for s in samples])
+        except Exception as e:
+            res.errors.append(f"diversity {i}: {type(e).__name__}: {e}")
+    return res
+
+
+# --------------------------------------------------------------------------------------------
+# scoring
+# --------------------------------------------------------------------------------------------
+class CloudCache:
+    """Posed clouds per object (same seed for all: identical objects → identical clouds)."""
+
+    def __init__(self, cfg: EvalConfig):
+        self.cfg = cfg
+        self._c: dict[int, object] = {}
+
+    def __call__(self, obj: ArticulatedObject):
+        k = id(obj)
+        if k not in self._c:
+            self._c[k] = (posed_clouds(obj, self.cfg.poses, self.cfg.points, self.cfg.seed), obj)
+        return self._c[k][0]
+
+
+def _por_stats(objs: list, states: int) -> dict:
+    vals, maxes, bad, fails = [], [], 0, 0
+    for o in objs:
+        if o is None:
+            continue
+        try:
+            r = part_overlap_ratio(o, states)
+        except Exception as e:
+            log.warning("POR of %s failed: %s", getattr(o, "name", "?"), e)
+            fails += 1
+            continue
+        vals.append(r.mean)
+        maxes.append(r.max)
+        bad += r.nonwatertight_parts
+    return {"por": float(np.mean(vals)) if vals else None,
+            "por_max": float(np.mean(maxes)) if maxes else None,
+            "por_per_object": vals, "nonwatertight_parts": bad, "por_failures": fails}
+
+
+def score_method(out: MethodOutput, refs: list, D_rr: Optional[np.ndarray], clouds: CloudCache,
+                 cfg: EvalConfig, n_test: int) -> dict:
+    """All metrics of one method. The first ``n_test`` prompts are paired with ``refs``."""
+    t0 = time.perf_counter()
+    res: dict = {"name": out.name, "n_prompts": len(out.objects),
+                 "n_failed": sum(o is None for o in out.objects), "errors": out.errors[:20]}
+    res.update(_por_stats(out.objects, cfg.por_states))
+    gen_test = [o for o in out.objects[:n_test] if o is not None]
+    if refs and gen_test and D_rr is not None:
+        cg = [clouds(o) for o in gen_test]
+        cr = [clouds(o) for o in refs]
+        D_gg = id_matrix(cg, workers=cfg.workers)
+        D_gr = id_matrix(cg, cr, workers=cfg.workers)
+        m = set_metrics(D_gg, D_gr, D_rr)
+        res.update(mmd=m.mmd, cov=m.cov, nna=m.nna, n_generated=m.n_generated,
+                   n_reference=m.n_reference)
+        res["nearest_reference_id"] = D_gr.min(axis=1).tolist()
+    if any(p is not None for p in out.prompts):
+        results = []
+        for prompt, o in zip(out.prompts, out.objects):
+            if prompt is None:
+                continue
+            if o is None:
+                r = al.check_alignment(al.parse_prompt(prompt), al.GeneratedStructure(None, {}, {}))
+            else:
+                r = al.alignment_of(prompt, o)
+            results.append(r)
+        s_all = al.summarise(results)
+        s_test = al.summarise(results[:n_test])
+        s_free = al.summarise(results[n_test:])
+        res["alignment"] = s_all["alignment"]
+        res["alignment_test"] = s_test["alignment"]
+        res["alignment_freeform"] = s_free["alignment"]
+        res["alignment_detail"] = {"all": s_all, "test": s_test, "freeform": s_free}
+        res["alignment_failures"] = [
+            {"prompt": p, "failures": r.failures} for p, r in
+            zip([p for p in out.prompts if p is not None], results) if r.checked and not r.aligned][:30]
+    if out.diversity_sets:
+        divs = [diversity_of([clouds(o) for o in s], cfg.workers) for s in out.diversity_sets
+                if len(s) >= 2]
+        res["diversity"] = float(np.mean(divs)) if divs else None
+        res["diversity_per_prompt"] = divs
+    if cfg.validity and out.urdfs:
+        from .validity import validity
+        paths = [u for u in out.urdfs if u is not None]
+        objs = [o for u, o in zip(out.urdfs, out.objects) if u is not None]
+        v = validity(paths, objs) if paths else None
+        n_total = len(out.urdfs)
+        res["validity"] = (sum(v.valid) / n_total) if v else 0.0   # failures count as invalid
+        res["validity_detail"] = v.to_json() if v else {}
+    if out.timings:
+        stages = sorted({k for t in out.timings for k in t})
+        res["timings_median"] = {s: float(np.median([t[s] for t in out.timings if s in t]))
+                                 for s in stages}
+    res.update(out.extra)
+    res["score_seconds"] = time.perf_counter() - t0
+    return res
+
+
+# --------------------------------------------------------------------------------------------
+# the run
+# --------------------------------------------------------------------------------------------
+def run_eval(cfg: EvalConfig, loader: Optional[Callable] = None) -> dict:
+    """Everything ``artformer eval`` does; returns the results dict (also written to disk).
+
+    ``loader``: how to build a generator from a ``GenerationConfig`` (default
+    ``Generator.load``)."""
+    t_start = time.perf_counter()
+    out = Path(cfg.out)
+    out.mkdir(parents=True, exist_ok=True)
+    rng = np.random.default_rng(cfg.seed)
+    data = Dataset.open(cfg.data)
+    test_ids = data.ids(cfg.split)
+    if not test_ids:
+        raise ValueError(f"{cfg.data}: split {cfg.split!r} is empty")
+    test_ids = sorted(test_ids)
+    if cfg.n < len(test_ids):
+        test_ids = sorted(rng.choice(test_ids, size=cfg.n, replace=False).tolist())
+    recs = [data.record(i) for i in test_ids]
+    test_prompts = [pick_description(r, k) for k, r in enumerate(recs)]
+    refs = [data.object(i) for i in test_ids]
+    free = freeform_prompts(cfg.freeform_file)
+    if cfg.n_freeform is not None:
+        free = free[:cfg.n_freeform]
+    prompts = test_prompts + free
+    n_test = len(test_prompts)
+    log.info("eval: %d test prompts + %d free-form prompts", n_test, len(free))
+
+    clouds = CloudCache(cfg)
+    cr = [clouds(o) for o in refs]
+    D_rr = id_matrix(cr, workers=cfg.workers, progress=cfg.progress)
+
+    methods: list[MethodOutput] = []
+    ckpt = None if cfg.checkpoint in (None, "", "shipped") else cfg.checkpoint
+    methods.append(generate_method("model", ckpt, prompts, cfg, out / "objects", loader))
+    for name, path in cfg.ablations.items():
+        methods.append(generate_method(name, path, prompts, cfg, out / "objects", loader))
+    if cfg.retrieval:
+        retr = Retriever(data, "train", cfg.text_encoder)
+        ids = retr.nearest(prompts)
+        objs = [data.object(i) for i in ids]
+        urdfs = [_export(o, out / "objects" / "retrieval" / f"{k:03d}") if cfg.validity else None
+                 for k, o in enumerate(objs)]
+        m = MethodOutput("retrieval", objs, urdfs, list(prompts), extra={"retrieved_ids": ids})
+        methods.append(m)
+    if cfg.train_floor:
+        train_ids = sorted(data.ids("train"))
+        k = min(len(train_ids), n_test)
+        pick = sorted(rng.choice(train_ids, size=k, replace=False).tolist()) if k else []
+        objs = [data.object(i) for i in pick]
+        methods.append(MethodOutput("train (floor)", objs, [], [None] * len(objs)))
+
+    rows = []
+    for m in methods:
+        log.info("scoring %s", m.name)
+        # the floor row has no prompts: all its objects stand against the references
+        nt = len(m.objects) if m.name == "train (floor)" else n_test
+        rows.append(score_method(m, refs, D_rr, clouds, cfg, nt))
+    gt = MethodOutput("test (GT)", refs, [], test_prompts)
+    gt_row = score_method(gt, [], None, clouds, EvalConfig(**{**asdict(cfg), "validity": False}),
+                          n_test)
+    rows.append(gt_row)
+
+    results = {"config": asdict(cfg), "n_test": n_test, "n_freeform": len(free),
+               "test_ids": test_ids, "prompts": prompts, "rows": rows,
+               "published": PUBLISHED, "seconds": time.perf_counter() - t_start,
+               "id_points": cfg.points, "id_poses": cfg.poses}
+    from model.data.format import atomic_write_json
+    atomic_write_json(out / "results.json", _jsonable(results))
+    from .report import results_markdown, results_plots
+    md = results_markdown(results)
+    (out / "results.md").write_text(md)
+    if cfg.plots:
+        results["figures"] = results_plots(results, out)
+        atomic_write_json(out / "results.json", _jsonable(results))
+    return results
+
+
+def _jsonable(x):
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, (np.floating, np.integer)):
+        return x.item()
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    return x
