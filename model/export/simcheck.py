@@ -125,29 +125,38 @@ def _poses_to_test(obj, joints: list[_UJoint]):
     from model.core.objects import JointType
     from .urdf import JOINT_SUFFIX, SLIDE_SUFFIX, posed_link_frames
 
-    def urdf_values(tr: dict) -> dict:
+    # Drive the simulator with the URDF's own limits at a ratio and expect our FK at the same
+    # ratio: a wrong limit in the file shows up as a pose error, not only a wrong frame.
+    by_name = {j.name: j for j in joints}
+
+    def urdf_values(ratios: dict) -> dict:
         vals = {}
         for p in obj.parts:
             if p.parent < 0 or p.joint.type == JointType.FIXED:
                 continue
-            t, r = tr.get(p.name, (0.0, 0.0))
-            if p.joint.type == JointType.SCREW:
-                vals[p.name + SLIDE_SUFFIX] = t
-                vals[p.name + JOINT_SUFFIX] = r
-            else:
-                vals[p.name + JOINT_SUFFIX] = t if p.joint.type.translates else r
+            r = ratios.get(p.name, 0.0)
+            names = ([p.name + SLIDE_SUFFIX, p.name + JOINT_SUFFIX]
+                     if p.joint.type == JointType.SCREW else [p.name + JOINT_SUFFIX])
+            for n in names:
+                if n not in by_name:
+                    raise KeyError(f"URDF has no joint {n!r} for part {p.name!r}")
+            if p.joint.type == JointType.CONTINUOUS:   # the URDF has no range: use ours
+                vals[names[0]] = p.joint.value_at(r)[1]
+                continue
+            for n in names:
+                j = by_name[n]
+                vals[n] = j.lower + r * (j.upper - j.lower)
         return vals
 
+    movable = [p.name for p in obj.parts if p.parent >= 0 and p.joint.type != JointType.FIXED]
     for r in (0.0, 0.5, 1.0):
-        tr = obj.joint_values_at(r)
-        cases.append((urdf_values(tr), posed_link_frames(obj, ratio=r)))
-    for p in obj.parts:
-        if p.parent < 0 or p.joint.type == JointType.FIXED:
-            continue
+        ratios = {n: r for n in movable}
+        cases.append((urdf_values(ratios), posed_link_frames(obj, ratio=ratios)))
+    for name in movable:
         for r in (0.0, 1.0):
-            t, rot = p.joint.value_at(r)
-            value = (t, rot) if p.joint.type == JointType.SCREW else (t if p.joint.type.translates else rot)
-            cases.append((urdf_values({p.name: (t, rot)}), posed_link_frames(obj, {p.name: value})))
+            ratios = {n: 0.0 for n in movable}
+            ratios[name] = r
+            cases.append((urdf_values(ratios), posed_link_frames(obj, ratio=ratios)))
     return cases
 
 
@@ -185,8 +194,12 @@ def _pose(pos, R) -> np.ndarray:
 
 
 def _backend_yourdfpy(path: Path):
+    import warnings
+
     import yourdfpy
-    urdf = yourdfpy.URDF.load(str(path), build_scene_graph=True, load_meshes=False)
+    with warnings.catch_warnings():  # yourdfpy 0.0.58 float()s 1-element arrays
+        warnings.simplefilter("ignore", DeprecationWarning)
+        urdf = yourdfpy.URDF.load(str(path), build_scene_graph=True, load_meshes=False)
     movable = {n: (j.limit.lower if j.limit is not None else None,
                    j.limit.upper if j.limit is not None else None)
                for n, j in urdf.joint_map.items() if j.type != "fixed"}
@@ -195,7 +208,9 @@ def _backend_yourdfpy(path: Path):
 
     def set_values(vals: dict) -> dict:
         cfg = np.array([vals.get(n, 0.0) for n in names], dtype=np.float64)
-        urdf.update_cfg(cfg)
+        with warnings.catch_warnings():  # yourdfpy 0.0.58 float()s 1-element arrays
+            warnings.simplefilter("ignore", DeprecationWarning)
+            urdf.update_cfg(cfg)
         return {ln: urdf.get_transform(ln, base) for ln in urdf.link_map}
 
     return set_values, movable, lambda: None
@@ -266,6 +281,14 @@ def _backend_mujoco(path: Path):
 
 _BACKENDS: dict[str, Callable] = {"yourdfpy": _backend_yourdfpy, "pybullet": _backend_pybullet,
                                   "mujoco": _backend_mujoco}
+
+
+def _has_package_uri(path: Path) -> bool:
+    """pybullet only strips ``package://`` and searches beside the URDF; a package URI that
+    names a folder hierarchy needs the resolved copy."""
+    from lxml import etree
+    return any(m.get("filename", "").startswith("package://")
+               for m in etree.parse(str(path)).getroot().iter("mesh"))
 
 
 def _has_mujoco_element(path: Path) -> bool:
@@ -345,7 +368,8 @@ def check_urdf(path: os.PathLike, obj=None, *, simulators=SIMULATORS) -> SimRepo
                     if bad:
                         res.note = (f"{len(bad)} visual mesh(es) in a format {sim} cannot read "
                                     f"(e.g. {Path(bad[0]).name}); checked without visuals")
-                    if bad or not _has_mujoco_element(path):
+                    if bad or not _has_mujoco_element(path) or (
+                            sim == "pybullet" and _has_package_uri(path)):
                         load_path = _resolved_copy(path, tmpdir, sim, drop_visuals=bool(bad))
                 set_values, sim_movable, close = _BACKENDS[sim](load_path)
                 res.loaded = True

@@ -109,7 +109,6 @@ def mass_properties(mesh, density: float) -> tuple[float, np.ndarray, np.ndarray
     symmetrised and its eigenvalues floored so it is always positive definite and satisfies
     the triangle inequality that simulators check.
     """
-    import trimesh
     com, inertia, mass = None, None, 0.0
     if mesh is not None and len(mesh.faces):
         cands = [mesh] if mesh.is_watertight and mesh.volume > 1e-12 else []
@@ -130,7 +129,8 @@ def mass_properties(mesh, density: float) -> tuple[float, np.ndarray, np.ndarray
         ext = np.maximum(np.asarray(hi) - np.asarray(lo), 0.002)
         mass = float(density * np.prod(ext))
         com = (np.asarray(lo) + np.asarray(hi)) / 2.0
-        inertia = np.diag(trimesh.inertia.cuboid(mass, ext).diagonal())
+        a, b, c = ext
+        inertia = mass / 12.0 * np.diag([b * b + c * c, a * a + c * c, a * a + b * b])
     if mass < MIN_MASS:
         inertia = inertia * (MIN_MASS / max(mass, 1e-12))
         mass = MIN_MASS
