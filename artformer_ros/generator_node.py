@@ -55,7 +55,7 @@ RESULTS = QoSProfile(depth=1000, history=HistoryPolicy.KEEP_LAST,
 # Transport buffers of the requests; admission control is the node's own queue_size.
 TEXT_REQUESTS = QoSProfile(depth=1000, history=HistoryPolicy.KEEP_LAST,
                            reliability=ReliabilityPolicy.RELIABLE)
-IMAGE_REQUESTS = QoSProfile(depth=8, history=HistoryPolicy.KEEP_LAST,
+IMAGE_REQUESTS = QoSProfile(depth=16, history=HistoryPolicy.KEEP_LAST,
                             reliability=ReliabilityPolicy.RELIABLE)
 
 
@@ -181,6 +181,17 @@ class GeneratorNode(Node):
         elif urdf_xml is None and result.get("status") != "error":
             self.get_logger().info(f"request {result.get('id')}: {result.get('message')}")
 
+    def flush(self, timeout: float = 2.0) -> None:
+        """Wait (bounded) until reliable subscribers acknowledged what was published, so the
+        last answers are not lost when the process ends right after."""
+        from rclpy.duration import Duration
+
+        for pub in (self._pub_result, self._pub_status, self._pub_description):
+            try:
+                pub.wait_for_all_acked(Duration(seconds=timeout))
+            except Exception as err:   # best effort only
+                self.get_logger().debug(f"flush: {err}")
+
     def _publish_status(self, state: str, message: str) -> None:
         with self._pub_lock:
             self._pub_status.publish(String(data=json.dumps(
@@ -210,6 +221,7 @@ def main(argv: Optional[list[str]] = None) -> int:
     finally:
         node.get_logger().info("shutting down: no new requests, queued ones rejected")
         clean = node.service.stop()
+        node.flush()
         executor.remove_node(node)
         node.destroy_node()
         rclpy.try_shutdown()
