@@ -29,7 +29,8 @@ def _random_model(end_bias: float = 0.0, seed: int = 0) -> ArticulationModel:
     with torch.no_grad():
         net.head_end.bias.fill_(end_bias)
     g = np.random.default_rng(seed)
-    ckpt = {"stats": {"tok_mean": np.zeros(16, np.float32), "tok_std": np.ones(16, np.float32)},
+    ckpt = {"stats": {"tok_mean": np.zeros(16, np.float32), "tok_std": np.ones(16, np.float32),
+                      "cs_mean": np.zeros(64, np.float32), "cs_std": np.ones(64, np.float32)},
             "label_table": {"categories": [c for c, _ in LABELS], "labels": [l for _, l in LABELS],
                             "cs": g.normal(size=(len(LABELS), 64)).astype(np.float32)},
             "text_encoder": "all-minilm-l6-v2", "train_config": {}}

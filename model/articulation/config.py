@@ -76,6 +76,9 @@ class TrainConfig:
     w_cs: float = 5.0
     w_p: float = 2.0
     w_z: float = 1.0              # ablation no_shape_prior: MSE on (normalised) z
+    w_label: float = 1.0          # auxiliary: CE of the nearest-c_s label decision
+    rounds_per_object: int = 4    # decoding rounds drawn per object per step (they share
+                                  # one encoded description)
 
 
 PRESETS: dict[str, tuple[ArticulationConfig, TrainConfig]] = {

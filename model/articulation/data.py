@@ -11,6 +11,7 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Optional
 
 import numpy as np
 import torch
@@ -55,7 +56,8 @@ class TreeItem:
     parents: np.ndarray        # (K,) parent position, -1 for the root
     depth: np.ndarray          # (K,)
     rounds: np.ndarray         # (K,) round in which the node is added
-    cs: np.ndarray             # (K, 64)
+    cs: np.ndarray             # (K, 64) normalised c_s
+    label_idx: np.ndarray      # (K,) row of the label table (-1 if the pair is not in it)
     geo: np.ndarray            # (K, C, N) P_gt or (K, Z) normalised z
     labels: list[str]
     texts: list[list[str]]     # texts per description length (lengths that exist)
@@ -67,8 +69,8 @@ class TreeItem:
 
 
 def make_item(rec: fmt.ObjectRecord, tok_mean: np.ndarray, tok_std: np.ndarray,
-              cs: np.ndarray, geo: np.ndarray) -> TreeItem:
-    """cs (K, 64) and geo (K, ...) in the record's node order."""
+              cs: np.ndarray, geo: np.ndarray, label_idx: np.ndarray) -> TreeItem:
+    """cs (K, 64) normalised, geo (K, ...) and label_idx (K,) in the record's node order."""
     toks = np.asarray(rec.tokens, dtype=np.float64)
     order, rounds, _ = canonical_order(rec.labels, rec.parents, toks)
     pos = {old: new for new, old in enumerate(order)}
@@ -85,6 +87,7 @@ def make_item(rec: fmt.ObjectRecord, tok_mean: np.ndarray, tok_std: np.ndarray,
         parents=parents.astype(np.int64), depth=depth,
         rounds=np.array([rounds[i] for i in order], dtype=np.int64),
         cs=np.asarray(cs, dtype=np.float32)[order], geo=np.asarray(geo, dtype=np.float32)[order],
+        label_idx=np.asarray(label_idx, dtype=np.int64)[order],
         labels=[rec.labels[i] for i in order], texts=texts)
 
 
@@ -105,7 +108,8 @@ def round_sample(item: TreeItem, k: int) -> dict:
             "target": target}
 
 
-def collate(samples: list[dict], geo_shape: tuple[int, ...]) -> tuple[TreeBatch, Targets]:
+def collate(samples: list[dict], geo_shape: tuple[int, ...],
+            label_cs: Optional[torch.Tensor] = None) -> tuple[TreeBatch, Targets]:
     B = len(samples)
     N = max(len(s["parents"]) for s in samples)
     cs_dim = samples[0]["item"].cs.shape[1]
@@ -118,6 +122,7 @@ def collate(samples: list[dict], geo_shape: tuple[int, ...]) -> tuple[TreeBatch,
     has = np.zeros((B, N), np.float32)
     ctok = np.zeros((B, N, TOKEN_DIM), np.float32)
     cjt = np.zeros((B, N), np.int64)
+    clab = np.full((B, N), -1, np.int64)
     ccs = np.zeros((B, N, cs_dim), np.float32)
     cgeo = np.zeros((B, N) + tuple(geo_shape), np.float32)
     if len(geo_shape) == 2:
@@ -136,13 +141,15 @@ def collate(samples: list[dict], geo_shape: tuple[int, ...]) -> tuple[TreeBatch,
         has[b, sel] = 1.0
         ctok[b, sel] = it.tokens[t[sel]]
         cjt[b, sel] = it.jtypes[t[sel]]
+        clab[b, sel] = it.label_idx[t[sel]]
         ccs[b, sel] = it.cs[t[sel]]
         cgeo[b, sel] = it.geo[t[sel]]
     T = torch.from_numpy
     batch = TreeBatch(T(tok), T(jt), T(cs), T(par), T(dep), T(mask))
     is_z = len(geo_shape) == 1
     targets = Targets(T(has), T(ctok), T(cjt), T(ccs),
-                      child_P=None if is_z else T(cgeo), child_z=T(cgeo) if is_z else None)
+                      child_P=None if is_z else T(cgeo), child_z=T(cgeo) if is_z else None,
+                      child_label=T(clab) if label_cs is not None else None, label_cs=label_cs)
     return batch, targets
 
 
@@ -198,6 +205,33 @@ class TextCache:
             if d.get("encoder") == encoder:
                 return cls(encoder, d["index"], d["states"])
         return cls(encoder)
+
+
+def group_rounds(items: list[TreeItem], order: np.ndarray, batch_size: int, per_object: int,
+                 rng: np.random.Generator, chunk_batches: int = 16) -> list[list[tuple[int, list[int]]]]:
+    """An epoch of batches. A batch holds whole objects, each with some of its decoding
+    rounds (``max(per_object, ceil(rounds / 3))``, all if fewer) until ``batch_size``
+    rounds are reached; objects of similar size share batches (less padding)."""
+    groups = []
+    for i in order:
+        R = items[i].num_rounds
+        k = min(R, max(per_object, -(-R // 3)))
+        groups.append((int(i), sorted(rng.choice(R, size=k, replace=False).tolist())))
+    batches: list[list[tuple[int, list[int]]]] = []
+    span = chunk_batches * max(1, batch_size // max(per_object, 1))
+    for c in range(0, len(groups), span):
+        chunk = sorted(groups[c:c + span], key=lambda g: len(items[g[0]].labels))
+        cur, n = [], 0
+        for g in chunk:
+            cur.append(g)
+            n += len(g[1])
+            if n >= batch_size:
+                batches.append(cur)
+                cur, n = [], 0
+        if cur:
+            batches.append(cur)
+    perm = rng.permutation(len(batches))
+    return [batches[j] for j in perm]
 
 
 def pick_texts(items: list[TreeItem], rng: np.random.Generator) -> list[str]:

@@ -98,7 +98,10 @@ class ArticulationModel:
         lt = ckpt["label_table"]
         self.table_categories: list[str] = list(lt["categories"])
         self.table_labels: list[str] = list(lt["labels"])
-        self.table_cs = torch.as_tensor(lt["cs"], dtype=torch.float32)          # (T, 64)
+        self.table_cs = torch.as_tensor(lt["cs"], dtype=torch.float32)          # (T, 64) raw
+        self.cs_mean = torch.as_tensor(st["cs_mean"], dtype=torch.float32)     # (64,)
+        self.cs_std = torch.as_tensor(st["cs_std"], dtype=torch.float32)
+        self.table_cs_n = (self.table_cs - self.cs_mean) / self.cs_std          # network space
         self.text_encoder_name: str = ckpt.get("text_encoder") or "all-minilm-l6-v2"
         self.text_max_length: int = int(ckpt.get("train_config", {}).get("max_text_tokens", 128))
 
@@ -115,19 +118,19 @@ class ArticulationModel:
         return enc.states.float(), enc.mask
 
     # -- labels -------------------------------------------------------------------------------
-    def nearest_label(self, cs: torch.Tensor) -> torch.Tensor:
-        """cs (K, 64) -> index into the label table (K,)."""
-        return torch.cdist(cs.float(), self.table_cs).argmin(-1)
+    def nearest_label(self, cs_n: torch.Tensor) -> torch.Tensor:
+        """Normalised cs (K, 64) -> index into the label table (K,)."""
+        return torch.cdist(cs_n.float(), self.table_cs_n).argmin(-1)
 
     def label_cs(self, category: str, label: str) -> torch.Tensor:
-        """c_s of a (category, label) pair from the table (same label of another category,
-        if that pair was never seen)."""
+        """Normalised c_s of a (category, label) pair from the table (the mean over the
+        categories that have the label, if that pair was never seen)."""
         pairs = list(zip(self.table_categories, self.table_labels))
         if (category, label) in pairs:
-            return self.table_cs[pairs.index((category, label))]
+            return self.table_cs_n[pairs.index((category, label))]
         same = [i for i, lab in enumerate(self.table_labels) if lab == label]
         if same:
-            return self.table_cs[same].mean(0)
+            return self.table_cs_n[same].mean(0)
         raise ValueError(f"part label {label!r} is not known to this model; known labels: "
                          f"{sorted(set(self.table_labels))}")
 
@@ -169,7 +172,8 @@ class ArticulationModel:
             return row
         if isinstance(keep, DecodedTree):
             toks, jts, pars, labs = keep.tokens, keep.joint_types, keep.parents, keep.labels
-            cs_list = [torch.as_tensor(c, dtype=torch.float32) for c in keep.cs]
+            cs_list = [(torch.as_tensor(c, dtype=torch.float32) - self.cs_mean) / self.cs_std
+                       for c in keep.cs]
             src = list(range(keep.num_nodes))
         else:
             order = keep.topological_order()
@@ -253,7 +257,7 @@ class ArticulationModel:
             else:
                 jt = int(out["jt"][t].argmax())
             cs_raw = out["cs"][t].float()
-            cs = self.table_cs[self.nearest_label(cs_raw[None])[0]]
+            cs = self.table_cs_n[self.nearest_label(cs_raw[None])[0]]
             row["tok"].append(out["art"][t].float().clone())
             row["jt"].append(jt)
             row["cs"].append(cs)
@@ -270,8 +274,10 @@ class ArticulationModel:
     def _finish(self, row: dict) -> DecodedTree:
         K = len(row["tok"])
         tok = torch.stack(row["tok"]) * self.tok_std + self.tok_mean if K else torch.zeros(0, TOKEN_DIM)
-        cs = torch.stack(row["cs"]) if K else torch.zeros(0, self.cfg.cs_dim)
-        idx = self.nearest_label(cs) if K else torch.zeros(0, dtype=torch.long)
+        cs_n = torch.stack(row["cs"]) if K else torch.zeros(0, self.cfg.cs_dim)
+        idx = self.nearest_label(cs_n) if K else torch.zeros(0, dtype=torch.long)
+        cs = cs_n * self.cs_std + self.cs_mean
+        cs_raw = torch.stack(row["cs_raw"]) * self.cs_std + self.cs_mean if K else cs
         labels = [self.table_labels[i] for i in idx.tolist()]
         cats = [self.table_categories[i] for i in idx.tolist()]
         category = ""
@@ -291,6 +297,6 @@ class ArticulationModel:
         return DecodedTree(
             tokens=tok.double().numpy(), joint_types=np.asarray(row["jt"], np.int64),
             parents=np.asarray(row["par"], np.int64), labels=labels, category=category,
-            cs=cs.numpy(), cs_raw=(torch.stack(row["cs_raw"]) if K else cs).numpy(),
+            cs=cs.numpy(), cs_raw=cs_raw.numpy(),
             P_logits=P, z=z, kept=np.asarray(row["kept"], bool),
             source_index=np.asarray(row["src"], np.int64))

@@ -50,7 +50,10 @@ class Targets:
 
     has_child (B, N) float; child_tokens (B, N, 16); child_jtypes (B, N) long;
     child_cs (B, N, 64); child_P (B, N, C, K) probabilities (or None);
-    child_z (B, N, Z) normalised latents (no_shape_prior ablation, else None).
+    child_z (B, N, Z) normalised latents (no_shape_prior ablation, else None);
+    child_label / label_cs: optional auxiliary target — labels are decoded as the nearest
+    c_s of the table, so a cross-entropy over negative distances to the table trains exactly
+    that decision.
     """
     has_child: torch.Tensor
     child_tokens: torch.Tensor
@@ -58,6 +61,8 @@ class Targets:
     child_cs: torch.Tensor
     child_P: Optional[torch.Tensor] = None
     child_z: Optional[torch.Tensor] = None
+    child_label: Optional[torch.Tensor] = None   # (B, N) long: row of label_cs, -1 = none
+    label_cs: Optional[torch.Tensor] = None      # (T, 64) c_s of every training label
 
 
 def _mlp(d_in: int, d_hidden: int, d_out: int) -> nn.Sequential:
@@ -102,12 +107,62 @@ class TreePositionEmbedding(nn.Module):
         return e.reshape(B, N, self.levels * self.code)
 
 
-class ConditionEncoder(nn.Module):
-    """Per-modality input projection + post-encoder over [NULL, condition tokens].
+class Attention(nn.Module):
+    """Multi-head attention whose keys/values may be computed once per condition and shared
+    by many query rows (``kv_index``): all decoding rounds of one object read one text."""
 
-    A learned NULL token is always present (never masked): it carries the unconditional
-    case (condition dropout) and keeps attention defined when every token is masked.
-    """
+    def __init__(self, d: int, heads: int, dropout: float):
+        super().__init__()
+        if d % heads:
+            raise ValueError(f"d_model {d} is not divisible by n_heads {heads}")
+        self.h, self.dropout = heads, dropout
+        self.q = nn.Linear(d, d)
+        self.kv = nn.Linear(d, 2 * d)
+        self.out = nn.Linear(d, d)
+
+    def forward(self, x: torch.Tensor, mem: torch.Tensor, mem_mask: torch.Tensor,
+                kv_index: Optional[torch.Tensor] = None) -> torch.Tensor:
+        """x (B, N, d) queries; mem (U, L, d), mem_mask (B, L) True = attend; kv_index (B,)
+        rows of mem per query row (None: U == B)."""
+        B, N, d = x.shape
+        U, L, _ = mem.shape
+        dh = d // self.h
+        q = self.q(x).view(B, N, self.h, dh).transpose(1, 2)               # (B, h, N, dh)
+        k, v = self.kv(mem).view(U, L, 2, self.h, dh).permute(2, 0, 3, 1, 4)  # (U, h, L, dh) x2
+        if kv_index is not None:
+            k, v = k[kv_index], v[kv_index]                                # (B, h, L, dh)
+        o = F.scaled_dot_product_attention(q, k, v, attn_mask=mem_mask[:, None, None, :],
+                                           dropout_p=self.dropout if self.training else 0.0)
+        return self.out(o.transpose(1, 2).reshape(B, N, d))
+
+
+class Block(nn.Module):
+    """Post-LN transformer block: self-attention (non-causal, key padding masked), optional
+    cross-attention to the condition, feed-forward."""
+
+    def __init__(self, d: int, heads: int, ffn_mult: int, dropout: float, cross: bool):
+        super().__init__()
+        self.self_attn = Attention(d, heads, dropout)
+        self.cross_attn = Attention(d, heads, dropout) if cross else None
+        self.ffn = nn.Sequential(nn.Linear(d, d * ffn_mult), nn.GELU(), nn.Linear(d * ffn_mult, d))
+        self.norms = nn.ModuleList([nn.LayerNorm(d) for _ in range(3 if cross else 2)])
+        self.drop = nn.Dropout(dropout)
+
+    def forward(self, x: torch.Tensor, mask: torch.Tensor, mem: Optional[torch.Tensor] = None,
+                mem_mask: Optional[torch.Tensor] = None,
+                kv_index: Optional[torch.Tensor] = None) -> torch.Tensor:
+        """x (B, N, d), mask (B, N) True = real token; mem (U, L, d), mem_mask (B, L)."""
+        x = self.norms[0](x + self.drop(self.self_attn(x, x, mask)))
+        if self.cross_attn is not None:
+            x = self.norms[1](x + self.drop(self.cross_attn(x, mem, mem_mask, kv_index)))
+        return self.norms[-1](x + self.drop(self.ffn(x)))
+
+
+class ConditionEncoder(nn.Module):
+    """Per-modality input projection + a small post-encoder over the condition tokens, then a
+    learned NULL token in front. NULL is never masked: it is what a dropped condition
+    (classifier-free training) leaves, and it keeps attention defined for any mask. It is
+    added after the encoder so that it carries no information about the text."""
 
     def __init__(self, cfg: ArticulationConfig):
         super().__init__()
@@ -115,28 +170,24 @@ class ConditionEncoder(nn.Module):
         self.proj = nn.ModuleDict({m: nn.Sequential(nn.Linear(dim, d), nn.LayerNorm(d))
                                    for m, dim in cfg.cond_dims.items()})
         self.null = nn.Parameter(torch.randn(1, 1, d) * 0.02)
-        layer = nn.TransformerEncoderLayer(d, cfg.n_heads, d * cfg.ffn_mult, cfg.dropout,
-                                           activation="gelu", batch_first=True, norm_first=False)
-        self.encoder = nn.TransformerEncoder(layer, cfg.cond_layers, enable_nested_tensor=False) \
-            if cfg.cond_layers > 0 else None
+        self.layers = nn.ModuleList([Block(d, cfg.n_heads, cfg.ffn_mult, cfg.dropout, False)
+                                     for _ in range(cfg.cond_layers)])
 
-    def forward(self, tokens: torch.Tensor, mask: torch.Tensor, modality: str,
-                drop: Optional[torch.Tensor] = None) -> tuple[torch.Tensor, torch.Tensor]:
-        """tokens (B, L, D_cond), mask (B, L) True = real, drop (B,) bool ->
-        memory (B, 1+L, d), memory mask (B, 1+L)."""
+    def forward(self, tokens: torch.Tensor, mask: torch.Tensor, modality: str
+                ) -> tuple[torch.Tensor, torch.Tensor]:
+        """tokens (U, L, D_cond), mask (U, L) True = real -> memory (U, 1+L, d), mask (U, 1+L)."""
         if modality not in self.proj:
             raise KeyError(f"no input projection for condition modality {modality!r}; "
                            f"this model knows {sorted(self.proj)}")
-        B = tokens.shape[0]
-        x = self.proj[modality](tokens)                                  # (B, L, d)
+        U = tokens.shape[0]
         mask = mask.bool()
-        if drop is not None:
-            mask = mask & ~drop.view(B, 1)
-        x = torch.cat([self.null.expand(B, -1, -1), x], 1)               # (B, 1+L, d)
-        mask = torch.cat([mask.new_ones(B, 1), mask], 1)                 # (B, 1+L)
-        if self.encoder is not None:
-            x = self.encoder(x, src_key_padding_mask=~mask)
-        return x, mask
+        x = self.proj[modality](tokens.float())                          # (U, L, d)
+        enc_mask = mask.clone()
+        enc_mask[:, 0] |= ~mask.any(1)        # an all-masked row: attend to something finite
+        for layer in self.layers:
+            x = layer(x, enc_mask)
+        x = torch.cat([self.null.expand(U, -1, -1), x], 1)               # (U, 1+L, d)
+        return x, torch.cat([mask.new_ones(U, 1), mask], 1)
 
 
 class ArticulationTransformer(nn.Module):
@@ -151,10 +202,8 @@ class ArticulationTransformer(nn.Module):
         self.tpe = TreePositionEmbedding(d_node, cfg.tpe_hidden, cfg.tpe_code_dim, cfg.tpe_levels)
         self.combine = nn.Linear(d + cfg.tpe_dim, d)
         self.cond = ConditionEncoder(cfg)
-        self.layers = nn.ModuleList([
-            nn.TransformerDecoderLayer(d, cfg.n_heads, d * cfg.ffn_mult, cfg.dropout,
-                                       activation="gelu", batch_first=True, norm_first=False)
-            for _ in range(cfg.n_layers)])
+        self.layers = nn.ModuleList([Block(d, cfg.n_heads, cfg.ffn_mult, cfg.dropout, True)
+                                     for _ in range(cfg.n_layers)])
         self.head_end = nn.Linear(d, 1)
         self.head_art = _mlp(d, d, cfg.token_dim)
         self.head_jt = nn.Linear(d, NUM_JOINT_TYPES)
@@ -180,17 +229,25 @@ class ArticulationTransformer(nn.Module):
 
     def forward(self, batch: TreeBatch, cond_tokens: torch.Tensor, cond_mask: torch.Tensor,
                 modality: str = "text", drop: Optional[torch.Tensor] = None,
+                cond_index: Optional[torch.Tensor] = None,
                 targets: Optional[Targets] = None, weights: Optional[dict] = None):
         """Returns (outputs, losses); losses is None without targets.
 
+        cond_tokens (U, L, D_cond), cond_mask (U, L); cond_index (B,) picks the condition row
+        of every tree (None: U == B); drop (B,) bool drops a tree's condition (NULL only).
         outputs: end (B, N) logits, art (B, N, 16), jt (B, N, 5), cs (B, N, 64),
         geo (B, N, C, K) codebook logits or (B, N, Z) latents.
         """
-        mem, mem_mask = self.cond(cond_tokens, cond_mask, modality, drop)
+        mem, mem_mask = self.cond(cond_tokens, cond_mask, modality)      # (U, 1+L, d)
+        if cond_index is not None:
+            mem_mask = mem_mask[cond_index]                              # (B, 1+L)
+        if drop is not None:
+            keep = torch.ones_like(mem_mask)
+            keep[:, 1:] = ~drop.view(-1, 1)
+            mem_mask = mem_mask & keep
         x = self.encode_nodes(batch)
-        pad = ~batch.mask
         for layer in self.layers:
-            x = layer(x, mem, tgt_key_padding_mask=pad, memory_key_padding_mask=~mem_mask)
+            x = layer(x, batch.mask, mem, mem_mask, cond_index)
         geo = self.head_geo(x)
         if not self.cfg.predict_z:
             geo = geo.view(*x.shape[:2], self.cfg.num_codebooks, self.cfg.codebook_size)
@@ -211,6 +268,12 @@ class ArticulationTransformer(nn.Module):
              "jt": (F.cross_entropy(out["jt"].transpose(1, 2), t.child_jtypes,
                                     reduction="none") * mc).sum() / nc,
              "cs": (((out["cs"] - t.child_cs) ** 2).mean(-1) * mc).sum() / nc}
+        if t.child_label is not None and t.label_cs is not None:
+            d2 = ((out["cs"].unsqueeze(-2) - t.label_cs) ** 2).mean(-1)     # (B, N, T)
+            ml = mc * (t.child_label >= 0)
+            ce = F.cross_entropy((-d2 / 0.1).transpose(1, 2), t.child_label.clamp_min(0),
+                                 reduction="none")
+            L["label"] = (ce * ml).sum() / ml.sum().clamp_min(1.0)
         if self.cfg.predict_z:
             L["z"] = (((out["geo"] - t.child_z) ** 2).mean(-1) * mc).sum() / nc
         else:
@@ -220,6 +283,7 @@ class ArticulationTransformer(nn.Module):
             L["P"] = (kl * mc).sum() / nc
         weights = {"end": w.get("w_end", 1.0), "art": w.get("w_art", 10.0),
                    "jt": w.get("w_jt", 1.0), "cs": w.get("w_cs", 5.0),
-                   "P": w.get("w_p", 2.0), "z": w.get("w_z", 1.0)}
+                   "P": w.get("w_p", 2.0), "z": w.get("w_z", 1.0),
+                   "label": w.get("w_label", 1.0)}
         L["total"] = sum(weights[k] * v for k, v in L.items())
         return L

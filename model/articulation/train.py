@@ -25,7 +25,8 @@ from model.data.vocab import semantic_text
 
 from .checkpoint import read_checkpoint, save_checkpoint
 from .config import ArticulationConfig, TrainConfig
-from .data import TextCache, TreeItem, collate, make_item, pick_texts, round_sample
+from .data import (TextCache, TreeItem, collate, group_rounds, make_item, pick_texts,
+                   round_sample)
 from .network import ArticulationTransformer
 
 log = logging.getLogger(__name__)
@@ -105,6 +106,11 @@ def prepare_data(data_root: str, targets, *, predict_z: bool = False,
         label_table = {"categories": [c for c, _ in train_pairs],
                        "labels": [l for _, l in train_pairs],
                        "cs": np.stack([cs_of[p] for p in train_pairs])}
+    if "cs_mean" not in stats:
+        part_cs = np.stack([cs_of[(r.category, lab)] for r in recs["train"] for lab in r.labels])
+        stats["cs_mean"] = part_cs.mean(0).astype(np.float32)
+        stats["cs_std"] = np.maximum(part_cs.std(0), 1e-3).astype(np.float32)
+    row_of = {p: i for i, p in enumerate(zip(label_table["categories"], label_table["labels"]))}
     items = {}
     for s in splits:
         out = []
@@ -113,7 +119,9 @@ def prepare_data(data_root: str, targets, *, predict_z: bool = False,
             if predict_z:
                 g = (g - stats["z_mean"]) / stats["z_std"]
             cs = np.stack([cs_of[(r.category, lab)] for lab in r.labels])
-            out.append(make_item(r, stats["tok_mean"], stats["tok_std"], cs, g))
+            cs = (cs - stats["cs_mean"]) / stats["cs_std"]
+            lab_idx = np.array([row_of.get((r.category, lab), -1) for lab in r.labels])
+            out.append(make_item(r, stats["tok_mean"], stats["tok_std"], cs, g, lab_idx))
         items[s] = out
     geo_shape = tuple(next(iter(geo.values())).shape[1:])
     return PreparedData(items, stats, label_table, geo_shape, version,
@@ -124,13 +132,26 @@ def all_samples(items: list[TreeItem]) -> list[tuple[int, int]]:
     return [(i, k) for i, it in enumerate(items) for k in range(it.num_rounds)]
 
 
-def make_batch(items: list[TreeItem], pairs: list[tuple[int, int]], geo_shape, text_cache: TextCache,
-               rng: np.random.Generator):
-    samples = [round_sample(items[i], k) for i, k in pairs]
-    batch, targets = collate(samples, geo_shape)
-    texts = pick_texts([items[i] for i, _ in pairs], rng)
+def label_cs_normalised(data: "PreparedData") -> torch.Tensor:
+    st = data.stats
+    return torch.as_tensor((np.asarray(data.label_table["cs"]) - st["cs_mean"]) / st["cs_std"],
+                           dtype=torch.float32)
+
+
+def make_batch(items: list[TreeItem], groups: list[tuple[int, list[int]]], geo_shape,
+               text_cache: TextCache, rng: np.random.Generator,
+               label_cs: Optional[torch.Tensor] = None):
+    """groups: (item index, rounds). One description per object, shared by its rounds.
+    -> batch, targets, cond tokens (U, L, D), cond mask (U, L), cond_index (B,)."""
+    samples, index = [], []
+    for u, (i, rounds) in enumerate(groups):
+        for k in rounds:
+            samples.append(round_sample(items[i], k))
+            index.append(u)
+    batch, targets = collate(samples, geo_shape, label_cs)
+    texts = pick_texts([items[i] for i, _ in groups], rng)
     cond, cmask = text_cache.batch(texts)
-    return batch, targets, cond, cmask
+    return batch, targets, cond, cmask, torch.tensor(index)
 
 
 def lr_at(step: int, tc: TrainConfig) -> float:
@@ -155,22 +176,20 @@ class RunConfig:
 
 @torch.no_grad()
 def evaluate_loss(net: ArticulationTransformer, items, geo_shape, text_cache, tc: TrainConfig,
-                  n_batches: int, seed: int = 1234) -> dict:
+                  n_batches: int, seed: int = 1234, label_cs: Optional[torch.Tensor] = None) -> dict:
     """Mean loss terms over a fixed random subset of decoding rounds (no dropout)."""
     was = net.training
     net.eval()
     rng = np.random.default_rng(seed)
-    pairs = all_samples(items)
-    order = rng.permutation(len(pairs))
+    batches = group_rounds(items, rng.permutation(len(items)), tc.batch_size,
+                           tc.rounds_per_object, rng)
     sums: dict[str, float] = {}
     nb = 0
-    for b in range(n_batches):
-        sel = order[b * tc.batch_size:(b + 1) * tc.batch_size]
-        if len(sel) == 0:
-            break
-        batch, targets, cond, cmask = make_batch(items, [pairs[j] for j in sel], geo_shape,
-                                                 text_cache, rng)
-        _, L = net(batch, cond, cmask, "text", targets=targets, weights=asdict(tc))
+    for groups in batches[:n_batches]:
+        batch, targets, cond, cmask, idx = make_batch(items, groups, geo_shape, text_cache, rng,
+                                                      label_cs)
+        _, L = net(batch, cond, cmask, "text", cond_index=idx, targets=targets,
+                   weights=asdict(tc))
         for k, v in L.items():
             sums[k] = sums.get(k, 0.0) + float(v)
         nb += 1
@@ -196,8 +215,9 @@ def train(rc: RunConfig) -> Path:
     data = prepare_data(rc.data, _CodebookView(tg, cfg), predict_z=cfg.predict_z,
                         cache_dir=str(out / "cache"))
     tr, va = data.items["train"], data.items.get("val") or []
-    log.info("data %s: %d train / %d val objects, %d train rounds", data.data_version,
-             len(tr), len(va), len(all_samples(tr)))
+    log.info("data %s: %d train / %d val objects, %d train rounds, %d labels",
+             data.data_version, len(tr), len(va), len(all_samples(tr)),
+             len(data.label_table["labels"]))
     text_cache = TextCache.load(out / "cache" / "texts.pt", tc.text_encoder)
     n_before = len(text_cache.index)
     text_cache.add([t for it in tr + va for g in it.texts for t in g], tc.max_text_tokens,
@@ -236,8 +256,8 @@ def train(rc: RunConfig) -> Path:
             extra["optimizer"] = opt.state_dict()
         save_checkpoint(path, net, step=step, extra=extra, **common)
 
-    pairs = all_samples(tr)
-    perm, cursor = rng.permutation(len(pairs)), 0
+    label_cs = label_cs_normalised(data)
+    epoch: list = []
     net.train()
     t_loop = time.time()
     budget = tc.max_minutes * 60.0
@@ -250,16 +270,17 @@ def train(rc: RunConfig) -> Path:
         if budget and elapsed_before + time.time() - t_loop > budget:
             log.info("wall-clock budget of %.1f min reached at step %d", tc.max_minutes, step)
             break
-        if cursor + tc.batch_size > len(perm):
-            perm, cursor = rng.permutation(len(pairs)), 0
-        sel = perm[cursor:cursor + tc.batch_size]
-        cursor += tc.batch_size
-        batch, targets, cond, cmask = make_batch(tr, [pairs[j] for j in sel], data.geo_shape,
-                                                 text_cache, rng)
-        drop = torch.from_numpy(rng.random(len(sel)) < tc.cond_dropout)
+        if not epoch:
+            epoch = group_rounds(tr, rng.permutation(len(tr)), tc.batch_size,
+                                 tc.rounds_per_object, rng)
+        groups = epoch.pop()
+        batch, targets, cond, cmask, idx = make_batch(tr, groups, data.geo_shape, text_cache,
+                                                      rng, label_cs)
+        drop = torch.from_numpy(rng.random(len(groups)) < tc.cond_dropout)[idx]
         for g in opt.param_groups:
             g["lr"] = lr_at(step, tc)
-        _, L = net(batch, cond, cmask, "text", drop=drop, targets=targets, weights=asdict(tc))
+        _, L = net(batch, cond, cmask, "text", drop=drop, cond_index=idx, targets=targets,
+                   weights=asdict(tc))
         opt.zero_grad(set_to_none=True)
         L["total"].backward()
         torch.nn.utils.clip_grad_norm_(net.parameters(), tc.grad_clip)
@@ -276,7 +297,8 @@ def train(rc: RunConfig) -> Path:
             rec = {"step": step, "train": dict(run),
                    "time_min": (elapsed_before + time.time() - t_loop) / 60}
             if va:
-                rec["val"] = evaluate_loss(net, va, data.geo_shape, text_cache, tc, tc.val_batches)
+                rec["val"] = evaluate_loss(net, va, data.geo_shape, text_cache, tc, tc.val_batches,
+                                           label_cs=label_cs)
             history.append(rec)
             log.info("step %d train %.4f val %s", step, run["total"],
                      f"{rec['val']['total']:.4f}" if va else "-")
@@ -290,7 +312,8 @@ def train(rc: RunConfig) -> Path:
     final = {"step": step, "train": dict(run),
              "time_min": (elapsed_before + time.time() - t_loop) / 60}
     if va:
-        final["val"] = evaluate_loss(net, va, data.geo_shape, text_cache, tc, tc.val_batches)
+        final["val"] = evaluate_loss(net, va, data.geo_shape, text_cache, tc, tc.val_batches,
+                                     label_cs=label_cs)
     history.append(final)
     save(last)
     save(out / "transformer.pt", final=True)
