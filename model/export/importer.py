@@ -334,11 +334,10 @@ _LABEL_WORDS = ("drawer", "door", "handle", "knob", "button", "lid", "cap", "whe
 
 
 def _guess_label(link: str) -> str:
+    """The label word that ends latest in the link name ("door_handle" → handle)."""
     low = link.lower()
-    for w in _LABEL_WORDS:
-        if w in low:
-            return w
-    return "part"
+    hits = [(low.rfind(w) + len(w), w) for w in _LABEL_WORDS if w in low]
+    return max(hits)[1] if hits else "part"
 
 
 def _safe_name(link: str) -> str:
