@@ -43,6 +43,8 @@ def _eval_parser() -> argparse.ArgumentParser:
     p.add_argument("--diversity-samples", type=int, default=None)
     p.add_argument("--ablation", action="append", default=[], metavar="NAME=DIR",
                    help="extra checkpoint scored as its own row (repeatable)")
+    p.add_argument("--baselines-only", action="store_true",
+                   help="skip generation with --checkpoint; score retrieval / floor / GT only")
     p.add_argument("--no-retrieval", action="store_true")
     p.add_argument("--no-floor", action="store_true")
     p.add_argument("--no-validity", action="store_true")
@@ -88,7 +90,7 @@ def eval_main(argv: list[str]) -> int:
             kw[name] = v
     cfg = EvalConfig(data=data, out=args.out, checkpoint=args.checkpoint, split=args.split,
                      freeform_file=args.freeform_file, seed=args.seed, ablations=ablations,
-                     retrieval=not args.no_retrieval, train_floor=not args.no_floor,
+                     model=not args.baselines_only, retrieval=not args.no_retrieval, train_floor=not args.no_floor,
                      validity=not args.no_validity, workers=args.workers,
                      plots=not args.no_plots, progress=True, **kw)
     results = run_eval(cfg)

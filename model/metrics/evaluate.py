@@ -58,10 +58,12 @@ class EvalConfig:
     diversity_prompts: int = 4                  # prompts sampled several times
     diversity_samples: int = 4
     ablations: dict = field(default_factory=dict)   # name -> checkpoint folder
+    model: bool = True                          # False: score the baselines only
     retrieval: bool = True
     train_floor: bool = True
     validity: bool = True
     workers: int = 1                            # KD-tree query threads
+    collision: str = "hull"                     # collision geometry of the baselines' URDFs
     steps: Optional[int] = None                 # generation overrides (None = config default)
     resolution: Optional[int] = None
     text_encoder: str = "all-minilm-l6-v2"
@@ -84,10 +86,13 @@ class MethodOutput:
     extra: dict = field(default_factory=dict)            # copied into the results row
 
 
-def _export(obj: ArticulatedObject, folder: Path) -> Optional[str]:
-    from model.export.urdf import export_object
+def _export(obj: ArticulatedObject, folder: Path, collision: str = "hull") -> Optional[str]:
+    """Baseline objects' URDFs (one convex hull per part: validity checks loading and joint
+    motion, which the collision detail does not change; V-HACD costs seconds a part)."""
+    from model.export.urdf import CollisionConfig, export_object
     try:
-        return export_object(obj, folder, preview=False).urdf_path
+        return export_object(obj, folder, preview=False,
+                             collision=CollisionConfig(method=collision)).urdf_path
     except Exception as e:
         log.warning("export of %s failed: %s", obj.name, e)
         return None
@@ -270,14 +275,16 @@ def run_eval(cfg: EvalConfig, loader: Optional[Callable] = None) -> dict:
 
     methods: list[MethodOutput] = []
     ckpt = None if cfg.checkpoint in (None, "", "shipped") else cfg.checkpoint
-    methods.append(generate_method("model", ckpt, prompts, cfg, out / "objects", loader))
+    if cfg.model:
+        methods.append(generate_method("model", ckpt, prompts, cfg, out / "objects", loader))
     for name, path in cfg.ablations.items():
         methods.append(generate_method(name, path, prompts, cfg, out / "objects", loader))
     if cfg.retrieval:
         retr = Retriever(data, "train", cfg.text_encoder)
         ids = retr.nearest(prompts)
         objs = [data.object(i) for i in ids]
-        urdfs = [_export(o, out / "objects" / "retrieval" / f"{k:03d}") if cfg.validity else None
+        urdfs = [_export(o, out / "objects" / "retrieval" / f"{k:03d}", cfg.collision)
+                 if cfg.validity else None
                  for k, o in enumerate(objs)]
         m = MethodOutput("retrieval", objs, urdfs, list(prompts), extra={"retrieved_ids": ids})
         methods.append(m)
