@@ -146,3 +146,23 @@ def test_presets_build_and_paper_sizes():
         preset("huge")
     with pytest.raises(ValueError):
         preset("tiny", "no_such_ablation")
+
+
+def test_shared_condition_rows_equal_repeated_rows():
+    """cond_index (several trees reading one encoded text) == the text repeated per tree."""
+    torch.manual_seed(0)
+    cfg, _ = preset("tiny")
+    net = ArticulationTransformer(cfg).eval()
+    tb = _tree_batch([[-1, 0], [-1, 0, 1], [-1]])
+    cond = torch.randn(2, 4, 384)
+    cmask = torch.tensor([[True, True, True, False], [True, True, False, False]])
+    idx = torch.tensor([1, 0, 1])
+    drop = torch.tensor([False, False, True])
+    with torch.no_grad():
+        a, _ = net(tb, cond, cmask, cond_index=idx, drop=drop)
+        b, _ = net(tb, cond[idx], cmask[idx], drop=drop)
+    for k in a:
+        assert torch.allclose(a[k], b[k], atol=1e-5), k
+    with torch.no_grad():   # an all-masked condition row stays finite (NULL token only)
+        c, _ = net(tb, cond[idx], torch.zeros(3, 4, dtype=torch.bool))
+    assert all(torch.isfinite(v).all() for v in c.values())

@@ -153,13 +153,15 @@ class ArticulationModel:
         cond_tokens = cond_tokens.float()
         gens = [torch.Generator().manual_seed(int(seed) + i) for i in range(S)]
         rows = [self._initial_row(keep, max_nodes) for _ in range(S)]
+        memory = self.net.cond(cond_tokens, cond_mask, modality)   # encoded once, every round
         max_rounds = max_nodes + 2
         for _ in range(max_rounds):
             active = [i for i, r in enumerate(rows) if not all(r["done"])]
             if not active:
                 break
             batch = self._batch([rows[i] for i in active])
-            out, _ = self.net(batch, cond_tokens[active], cond_mask[active], modality)
+            out, _ = self.net(batch, None, None, modality, memory=memory,
+                              cond_index=torch.tensor(active))
             for b, i in enumerate(active):
                 self._grow(rows[i], {k: v[b] for k, v in out.items()}, gens[i],
                            max_nodes, max_depth, max_children, temperature)

@@ -230,15 +230,20 @@ class ArticulationTransformer(nn.Module):
     def forward(self, batch: TreeBatch, cond_tokens: torch.Tensor, cond_mask: torch.Tensor,
                 modality: str = "text", drop: Optional[torch.Tensor] = None,
                 cond_index: Optional[torch.Tensor] = None,
-                targets: Optional[Targets] = None, weights: Optional[dict] = None):
+                targets: Optional[Targets] = None, weights: Optional[dict] = None,
+                memory: Optional[tuple[torch.Tensor, torch.Tensor]] = None):
         """Returns (outputs, losses); losses is None without targets.
 
         cond_tokens (U, L, D_cond), cond_mask (U, L); cond_index (B,) picks the condition row
         of every tree (None: U == B); drop (B,) bool drops a tree's condition (NULL only).
         outputs: end (B, N) logits, art (B, N, 16), jt (B, N, 5), cs (B, N, 64),
         geo (B, N, C, K) codebook logits or (B, N, Z) latents.
+        ``memory``: the output of ``self.cond`` computed once (decoding reuses it every round);
+        cond_tokens / cond_mask are then ignored.
         """
-        mem, mem_mask = self.cond(cond_tokens, cond_mask, modality)      # (U, 1+L, d)
+        if memory is None:
+            memory = self.cond(cond_tokens, cond_mask, modality)
+        mem, mem_mask = memory                                           # (U, 1+L, d), (U, 1+L)
         if cond_index is not None:
             mem_mask = mem_mask[cond_index]                              # (B, 1+L)
         if drop is not None:
