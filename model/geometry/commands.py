@@ -1,0 +1,130 @@
+"""`artformer train sdf|prior`, `artformer eval geometry`, `artformer bench geometry`.
+
+argv keeps the route words, e.g. ['train', 'sdf', '--data', 'data/prepared/v1'].
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import sys
+
+
+def _train_parser(kind: str) -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog=f"artformer train {kind}",
+                                description=("train the tri-plane SDF auto-encoder" if kind == "sdf"
+                                             else "train the codebook diffusion shape prior "
+                                                  "(encodes every train part with --sdf first)"))
+    p.add_argument("--data", required=True, help="prepared dataset folder (with manifest.json)")
+    p.add_argument("--out", required=True, help="run folder: ckpt.pt, log.jsonl")
+    p.add_argument("--preset", default="small", help="tiny | small | paper (default small)")
+    if kind == "prior":
+        p.add_argument("--sdf", required=True, help="trained auto-encoder checkpoint")
+    p.add_argument("--steps", type=int, help="optimisation steps (default: the preset's)")
+    p.add_argument("--epochs", type=float, help="alternative to --steps: passes over the parts")
+    p.add_argument("--batch-size", type=int)
+    p.add_argument("--lr", type=float)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--threads", type=int, help="torch threads (split across torchrun ranks)")
+    p.add_argument("--resume", action="store_true", help="continue from OUT/ckpt.pt")
+    p.add_argument("--no-progress", action="store_true")
+    p.add_argument("--export", metavar="PATH",
+                   help="also write a stripped fp16 copy of the final weights to PATH")
+    return p
+
+
+def _train(kind: str, argv: list[str]) -> int:
+    from .train import RunArgs, export_weights, train_prior, train_sdf
+    a = _train_parser(kind).parse_args(argv[2:])
+    args = RunArgs(data=a.data, out=a.out, preset=a.preset, steps=a.steps, epochs=a.epochs,
+                   batch_size=a.batch_size, lr=a.lr, seed=a.seed, resume=a.resume,
+                   threads=a.threads, progress=not a.no_progress,
+                   sdf=getattr(a, "sdf", None), argv=tuple(["artformer", *argv]))
+    res = (train_sdf if kind == "sdf" else train_prior)(args)
+    import os
+    if int(os.environ.get("RANK", "0")) == 0:
+        if a.export:
+            res["exported_bytes"] = export_weights(res["out"], a.export, kind)
+            res["exported"] = a.export
+        print(json.dumps(res, indent=1))
+    return 0
+
+
+def _load_shape(a, need_prior: bool):
+    from .api import ShapeModel
+    return ShapeModel.load(a.sdf, a.prior, need_prior=need_prior)
+
+
+def _eval(argv: list[str]) -> int:
+    p = argparse.ArgumentParser(prog="artformer eval geometry",
+                                description="reconstruction IoU / Chamfer on held-out parts; "
+                                            "prior sample yield and diversity")
+    p.add_argument("--data", required=True)
+    p.add_argument("--sdf", help="auto-encoder checkpoint (default: shipped)")
+    p.add_argument("--prior", help="prior checkpoint (default: shipped)")
+    p.add_argument("--split", default="test")
+    p.add_argument("--max-parts", type=int, default=300, help="0 = all")
+    p.add_argument("--resolution", type=int, default=64)
+    p.add_argument("--labels", type=int, default=12, help="label texts for prior samples")
+    p.add_argument("--samples-per-label", type=int, default=8, help="0 = skip the prior")
+    p.add_argument("--steps", type=int, default=50)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--threads", type=int, default=2)
+    p.add_argument("--json", help="also write the results here")
+    a = p.parse_args(argv[2:])
+    import torch
+    torch.set_num_threads(a.threads)
+    from .evaluate import evaluate
+    shape = _load_shape(a, need_prior=a.samples_per_label > 0)
+    res = evaluate(shape, a.data, split=a.split, max_parts=a.max_parts or None,
+                   resolution=a.resolution, labels=a.labels,
+                   samples_per_label=a.samples_per_label, steps=a.steps, seed=a.seed)
+    res["checkpoints"] = shape.info
+    text = json.dumps(res, indent=1)
+    print(text)
+    if a.json:
+        from model.data.format import atomic_write_bytes
+        atomic_write_bytes(a.json, text.encode())
+    return 0
+
+
+def _bench(argv: list[str]) -> int:
+    p = argparse.ArgumentParser(prog="artformer bench geometry",
+                                description="ms per part mesh and DDIM time of the shape prior")
+    p.add_argument("--sdf", help="auto-encoder checkpoint (default: shipped)")
+    p.add_argument("--prior", help="prior checkpoint (default: shipped)")
+    p.add_argument("--resolution", type=int, default=64)
+    p.add_argument("--parts", type=int, default=8)
+    p.add_argument("--steps", type=int, default=50)
+    p.add_argument("--repeats", type=int, default=10)
+    p.add_argument("--threads", type=int, default=2)
+    a = p.parse_args(argv[2:])
+    import torch
+    torch.set_num_threads(a.threads)
+    from .evaluate import benchmark
+    shape = _load_shape(a, need_prior=True)
+    res = benchmark(shape, resolution=a.resolution, parts=a.parts, steps=a.steps,
+                    repeats=a.repeats)
+    for k, v in res.items():
+        print(f"{k:<36} {v:.1f}" if isinstance(v, float) else f"{k:<36} {v}")
+    return 0
+
+
+def main(argv: list[str]) -> int:
+    logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
+    route = tuple(argv[:2])
+    from .checkpoint import CheckpointError
+    try:
+        if route == ("train", "sdf"):
+            return _train("sdf", argv)
+        if route == ("train", "prior"):
+            return _train("prior", argv)
+        if route == ("eval", "geometry"):
+            return _eval(argv)
+        if route == ("bench", "geometry"):
+            return _bench(argv)
+    except (CheckpointError, FileNotFoundError, ValueError) as e:
+        print(f"artformer {' '.join(route)}: error: {e}", file=sys.stderr)
+        return 1
+    print(f"model.geometry.commands: unknown route {' '.join(route)!r}", file=sys.stderr)
+    return 2

@@ -1,0 +1,269 @@
+"""Part-level views of a prepared dataset (model/data/format.py) for the shape prior, and a
+tiny primitive dataset writer for tests and smoke runs."""
+from __future__ import annotations
+
+import logging
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from model.data import format as fmt
+
+log = logging.getLogger(__name__)
+
+
+def category_words(category: str) -> str:
+    """'StorageFurniture' / 'washing_machine' -> 'storage furniture' / 'washing machine'."""
+    s = re.sub(r"(?<=[a-z0-9])(?=[A-Z])", " ", category.strip())
+    return re.sub(r"[_\-\s]+", " ", s).strip().lower()
+
+
+def label_text(category: str, label: str) -> str:
+    """The semantic-condition text of a part, e.g. 'storage furniture, drawer'."""
+    return f"{category_words(category)}, {re.sub(r'[_-]+', ' ', label.strip().lower())}"
+
+
+@dataclass
+class PartSet:
+    """All parts of one split, in memory (float16 to halve the footprint)."""
+    points: torch.Tensor              # (M, P, 3) surface points, unit cube
+    sdf: torch.Tensor                 # (M, S, 4) [xyz, sdf]
+    texts: list[str]                  # (M,) label texts
+    object_ids: list[str]             # (M,)
+    part_index: list[int]             # (M,) index k of the part in its object
+    center: np.ndarray                # (M, 3) unit-cube normalisation (object -> iso unit cube)
+    scale: np.ndarray                 # (M,)
+    box_center: torch.Tensor = None   # (M, 3) iso unit cube -> box frame: (x - c) * s
+    box_scale: torch.Tensor = None    # (M, 3)
+    data_version: str = ""
+    root: str = ""
+    text_vocab: list[str] = field(default_factory=list)
+    text_ids: torch.Tensor = None     # (M,) index into text_vocab
+
+    def __len__(self) -> int:
+        return self.points.shape[0]
+
+    def mesh_path(self, i: int) -> Path:
+        return Path(self.root) / "meshes" / self.object_ids[i] / f"{self.part_index[i]}.obj"
+
+
+MAX_STRETCH = 200.0
+
+
+def box_frame(points: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """Per-part box normalisation from surface points (B, P, 3) in the iso unit cube:
+    centre c (B, 3) and per-axis stretch s (B, 3) so that (x - c) * s spans [-0.95, 0.95]
+    on every axis.
+
+    Why: the articulation transformer predicts each part's bbox and the mesh is fitted into
+    it per axis anyway, so the shape model only has to carry the shape inside its box. A
+    2 cm door on a 70 cm cabinet is 0.03 thick in the iso cube (under one 64^3 cell) but
+    fills the box frame, so thin parts become resolvable.
+    """
+    p = points.float()
+    lo, hi = p.min(1).values, p.max(1).values                    # (B, 3)
+    c = (lo + hi) / 2
+    s = (0.95 / ((hi - lo) / 2).clamp_min(0.95 / MAX_STRETCH))   # (B, 3)
+    return c, s
+
+
+def to_box_sdf(points: torch.Tensor, normals: torch.Tensor, sdf: torch.Tensor,
+               c: torch.Tensor, s: torch.Tensor, bound: float = 1.05) -> torch.Tensor:
+    """Map SDF samples (K, S, 4) of K parts into their box frames.
+
+    Positions are stretched; distances are rescaled to first order by |S n| with n the
+    normal of the nearest surface point (exact near the surface, where it matters; the sign
+    is always exact). Samples that leave [-bound, bound]^3 are replaced by random in-box
+    samples of the same part. -> (K, S, 4).
+    """
+    from scipy.spatial import cKDTree
+    out = torch.empty_like(sdf, dtype=torch.float32)
+    rng = np.random.default_rng(0)
+    for k in range(sdf.shape[0]):
+        q = sdf[k, :, :3].float().numpy()
+        d = sdf[k, :, 3].float().numpy()
+        _, nn_idx = cKDTree(points[k].float().numpy()).query(q, k=1)
+        n = normals[k].float().numpy()[nn_idx]                        # (S, 3)
+        sk = s[k].numpy()
+        factor = np.linalg.norm(n * sk, axis=1) / np.maximum(np.linalg.norm(n, axis=1), 1e-6)
+        qb = (q - c[k].numpy()) * sk
+        db = d * np.where(np.isfinite(factor) & (factor > 0), factor, sk.min())
+        inside = np.all(np.abs(qb) <= bound, axis=1)
+        if not inside.any():
+            raise ValueError("a part has no SDF sample inside its box frame")
+        keep = np.flatnonzero(inside)
+        fill = rng.choice(keep, size=int((~inside).sum()), replace=True)
+        qb[~inside], db[~inside] = qb[fill], db[fill]
+        out[k, :, :3] = torch.from_numpy(qb)
+        out[k, :, 3] = torch.from_numpy(db)
+    return out
+
+
+def load_parts(root: str | Path, split: str, *, max_objects: int | None = None,
+               progress: bool = False, with_sdf: bool = True, max_sdf: int | None = None,
+               seed: int = 0) -> PartSet:
+    """Load every part of ``split`` (train / val / test) of a prepared dataset, in the box
+    frame (see :func:`box_frame`); ``with_sdf=False`` skips the SDF samples, ``max_sdf`` keeps
+    a random subset of that many SDF samples per part (memory and load time)."""
+    rng = np.random.default_rng(seed)
+    man = fmt.load_manifest(root)
+    ids = fmt.split_ids(root, split)
+    if max_objects is not None:
+        ids = ids[:max_objects]
+    pts, sdf, texts, oids, kidx, centers, scales, bcs, bss = [], [], [], [], [], [], [], [], []
+    it = ids
+    if progress:
+        from tqdm import tqdm
+        it = tqdm(ids, desc=f"load {split}", unit="obj")
+    P = S = None
+    for oid in it:
+        rec = fmt.load_record(root, oid)
+        arr = fmt.load_part_arrays(root, oid)
+        K = arr["points"].shape[0]
+        if K != rec.num_parts:
+            raise ValueError(f"{root}: object {oid} has {rec.num_parts} parts in its record but "
+                             f"{K} in parts/{oid}.npz; re-run `artformer data prepare`")
+        if P is None:
+            P, S = arr["points"].shape[1], arr["sdf"].shape[1]
+        if arr["points"].shape[1] != P or arr["sdf"].shape[1] != S:  # one tensor for all parts
+            raise ValueError(f"{root}: object {oid} has a different number of points/SDF samples")
+        p_iso = torch.from_numpy(arr["points"].astype(np.float32))   # (K, P, 3)
+        c, s = box_frame(p_iso)
+        bcs.append(c)
+        bss.append(s)
+        pts.append(((p_iso - c.unsqueeze(1)) * s.unsqueeze(1)).half())
+        if with_sdf:
+            nrm = torch.from_numpy(arr["normals"].astype(np.float32))
+            raw = arr["sdf"]
+            if max_sdf is not None and raw.shape[1] > max_sdf:
+                raw = raw[:, np.sort(rng.choice(raw.shape[1], max_sdf, replace=False))]
+            sdf.append(to_box_sdf(p_iso, nrm, torch.from_numpy(raw.astype(np.float32)),
+                                  c, s).half())
+        centers.append(arr["center"].astype(np.float32).reshape(K, 3))
+        scales.append(arr["scale"].astype(np.float32).reshape(K))
+        for k, lab in enumerate(rec.labels):
+            texts.append(label_text(rec.category, lab))
+            oids.append(oid)
+            kidx.append(k)
+    if not pts:
+        raise ValueError(f"{root}: split {split!r} has no objects")
+    vocab = sorted(set(texts))
+    lookup = {t: i for i, t in enumerate(vocab)}
+    return PartSet(points=torch.cat(pts), sdf=torch.cat(sdf) if with_sdf else None, texts=texts,
+                   object_ids=oids, box_center=torch.cat(bcs), box_scale=torch.cat(bss),
+                   part_index=kidx, center=np.concatenate(centers), scale=np.concatenate(scales),
+                   data_version=str(man.get("data_version", "")), root=str(root),
+                   text_vocab=vocab, text_ids=torch.tensor([lookup[t] for t in texts]))
+
+
+def sample_batch(parts: PartSet, idx: torch.Tensor, n_points: int, n_queries: int,
+                 generator: torch.Generator) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor]:
+    """Random subsets for parts ``idx`` (B,) -> points (B, n_points, 3), queries (B, n_queries, 3),
+    sdf (B, n_queries)."""
+    B = idx.shape[0]
+    P, S = parts.points.shape[1], parts.sdf.shape[1]
+    pi = torch.randint(0, P, (B, n_points), generator=generator)
+    si = torch.randint(0, S, (B, n_queries), generator=generator)
+    rows = idx.unsqueeze(1)
+    pts = parts.points[rows, pi].float()                      # (B, n_points, 3)
+    s = parts.sdf[rows, si].float()                           # (B, n_queries, 4)
+    return pts, s[..., :3].contiguous(), s[..., 3].contiguous()
+
+
+# -- a tiny dataset from primitives (tests, smoke runs) ----------------------------------------
+
+def normalise_to_unit_cube(mesh) -> tuple[object, np.ndarray, float]:
+    """Centre on the bbox, scale isotropically so the longest side spans [-0.95, 0.95]."""
+    lo, hi = mesh.bounds
+    center = (lo + hi) / 2.0
+    scale = 1.9 / float(max(hi - lo))
+    m = mesh.copy()
+    m.apply_translation(-center)
+    m.apply_scale(scale)
+    return m, center, scale
+
+
+def sample_part(mesh_unit, n_points: int, n_sdf: int, rng: np.random.Generator,
+                sigma: float = 0.012, uniform_share: float = 0.3):
+    """Surface points/normals and SDF samples of a watertight unit-cube mesh (DESIGN §3.3)."""
+    import igl
+    import trimesh
+    seed = int(rng.integers(2**31))
+    pts, fi = trimesh.sample.sample_surface(mesh_unit, n_points, seed=seed)
+    normals = mesh_unit.face_normals[fi]
+    n_u = int(round(n_sdf * uniform_share))
+    uni = rng.uniform(-1.025, 1.025, (n_u, 3))
+    near, _ = trimesh.sample.sample_surface(mesh_unit, n_sdf - n_u, seed=seed + 1)
+    near = near + rng.normal(0.0, sigma, near.shape)
+    q = np.concatenate([uni, near])
+    d = igl.signed_distance(q.astype(np.float64), np.asarray(mesh_unit.vertices, dtype=np.float64),
+                            np.asarray(mesh_unit.faces, dtype=np.int64))[0]
+    return pts, normals, np.concatenate([q, d[:, None]], axis=1)
+
+
+def primitive_mesh(kind: str, rng: np.random.Generator):
+    import trimesh
+    if kind == "box":
+        return trimesh.creation.box(extents=rng.uniform(0.1, 1.0, 3))
+    if kind == "cylinder":
+        return trimesh.creation.cylinder(radius=rng.uniform(0.1, 0.5), height=rng.uniform(0.1, 1.0),
+                                         sections=48)
+    if kind == "sphere":
+        return trimesh.creation.icosphere(subdivisions=3, radius=rng.uniform(0.2, 0.5))
+    if kind == "capsule":
+        return trimesh.creation.capsule(radius=rng.uniform(0.1, 0.3), height=rng.uniform(0.2, 0.8))
+    raise ValueError(kind)
+
+
+PRIMITIVE_LABELS = {"box": "body", "cylinder": "knob", "sphere": "button", "capsule": "handle"}
+
+
+def make_primitive_dataset(root: str | Path, n_objects: int = 8, *, parts_per_object: int = 2,
+                           n_points: int = 512, n_sdf: int = 2048, seed: int = 0,
+                           kinds: tuple[str, ...] = ("box", "cylinder", "sphere", "capsule"),
+                           splits: tuple[float, float] = (0.6, 0.2)) -> Path:
+    """Write a prepared dataset of objects made of random primitives (fixed joints)."""
+    root = Path(root)
+    rng = np.random.default_rng(seed)
+    ids = [f"prim{i:04d}" for i in range(n_objects)]
+    n_tr = max(1, int(round(n_objects * splits[0])))
+    n_va = max(1, int(round(n_objects * splits[1]))) if n_objects > 2 else 0
+    split_of = {oid: ("train" if i < n_tr else "val" if i < n_tr + n_va else "test")
+                for i, oid in enumerate(ids)}
+    labels_all = set()
+    for oid in ids:
+        pts, nrm, sdf, centers, scales, labels, tokens = [], [], [], [], [], [], []
+        offset = 0.0
+        for k in range(parts_per_object):
+            kind = kinds[int(rng.integers(len(kinds)))]
+            mesh = primitive_mesh(kind, rng)
+            mesh.apply_translation([offset - mesh.bounds[0][0], 0.0, -mesh.bounds[0][2]])
+            offset = mesh.bounds[1][0]
+            unit, c, s = normalise_to_unit_cube(mesh)
+            p, n, d = sample_part(unit, n_points, n_sdf, rng)
+            pts.append(p); nrm.append(n); sdf.append(d); centers.append(c); scales.append(s)
+            labels.append(PRIMITIVE_LABELS[kind])
+            lo, hi = mesh.bounds
+            tokens.append([*(hi - lo), *((lo + hi) / 2), 0, 0, 0, 0, 0, 1, 0, 0, 0, 0])
+            (root / "meshes" / oid).mkdir(parents=True, exist_ok=True)
+            mesh.export(root / "meshes" / oid / f"{k}.obj")
+        labels_all.update(labels)
+        rec = fmt.ObjectRecord(id=oid, category="Primitives", split=split_of[oid], labels=labels,
+                               parents=[-1] + [0] * (parts_per_object - 1),
+                               joint_types=[0] * parts_per_object,
+                               tokens=[[float(x) for x in t] for t in tokens],
+                               part_names=[f"part{k}" for k in range(parts_per_object)])
+        fmt.save_record(root, rec)
+        fmt.save_part_arrays(root, oid, points=np.asarray(pts, np.float16),
+                             normals=np.asarray(nrm, np.float16), sdf=np.asarray(sdf, np.float16),
+                             center=np.asarray(centers, np.float32),
+                             scale=np.asarray(scales, np.float32))
+    fmt.atomic_write_json(root / "manifest.json", {
+        "format": fmt.FORMAT_VERSION, "data_version": f"primitives-{seed}-{n_objects}",
+        "source": "model.geometry.data.make_primitive_dataset", "seed": seed,
+        "splits": {s: [o for o in ids if split_of[o] == s] for s in ("train", "val", "test")},
+        "labels": sorted(labels_all), "categories": ["Primitives"]})
+    return root

@@ -1,0 +1,311 @@
+"""Training of the SDF auto-encoder and of the diffusion prior.
+
+Single process by default; under ``torchrun --nproc_per_node N`` (RANK / WORLD_SIZE set) the
+model is wrapped in DistributedDataParallel over gloo (CPU), every rank draws its own random
+batches, rank 0 validates, logs and writes checkpoints. Resumable from ``OUT/ckpt.pt``.
+"""
+from __future__ import annotations
+
+import json
+import logging
+import math
+import os
+import time
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+from typing import Optional
+
+import torch
+
+from .checkpoint import CheckpointError, load_checkpoint, read_checkpoint, save_checkpoint
+from .config import TrainConfig, get_preset
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class RunArgs:
+    data: str
+    out: str
+    preset: str = "small"
+    steps: Optional[int] = None
+    epochs: Optional[float] = None
+    batch_size: Optional[int] = None
+    lr: Optional[float] = None
+    seed: int = 0
+    resume: bool = False
+    threads: Optional[int] = None
+    progress: bool = True
+    sdf: Optional[str] = None            # prior only: the trained auto-encoder
+    argv: tuple[str, ...] = ()
+
+
+class Dist:
+    """torchrun environment (or a single process)."""
+
+    def __init__(self):
+        self.world = int(os.environ.get("WORLD_SIZE", "1"))
+        self.rank = int(os.environ.get("RANK", "0"))
+        self.active = self.world > 1
+        if self.active:
+            import torch.distributed as dist
+            if not dist.is_initialized():
+                dist.init_process_group("gloo")
+
+    @property
+    def main(self) -> bool:
+        return self.rank == 0
+
+    def wrap(self, model: torch.nn.Module) -> torch.nn.Module:
+        if not self.active:
+            return model
+        from torch.nn.parallel import DistributedDataParallel
+        return DistributedDataParallel(model)
+
+    def barrier(self) -> None:
+        if self.active:
+            import torch.distributed as dist
+            dist.barrier()
+
+    def close(self) -> None:
+        if self.active:
+            import torch.distributed as dist
+            dist.destroy_process_group()
+
+
+def lr_at(step: int, tcfg: TrainConfig) -> float:
+    """Linear warm-up then cosine decay to 5 % of the peak."""
+    if step < tcfg.warmup:
+        return tcfg.lr * (step + 1) / tcfg.warmup
+    p = (step - tcfg.warmup) / max(1, tcfg.steps - tcfg.warmup)
+    return tcfg.lr * (0.05 + 0.95 * 0.5 * (1 + math.cos(math.pi * min(1.0, p))))
+
+
+def _train_cfg(base: TrainConfig, args: RunArgs, n_items: int, world: int) -> TrainConfig:
+    t = replace(base)
+    if args.batch_size:
+        t.batch_size = args.batch_size
+    if args.lr:
+        t.lr = args.lr
+    if args.epochs:
+        t.steps = max(1, math.ceil(args.epochs * n_items / (t.batch_size * world)))
+    if args.steps:
+        t.steps = args.steps
+    t.warmup = min(t.warmup, max(1, t.steps // 10))
+    if args.threads:
+        t.threads = args.threads
+    return t
+
+
+def _append_log(out: Path, row: dict) -> None:
+    with open(out / "log.jsonl", "a") as f:
+        f.write(json.dumps(row) + "\n")
+
+
+def _resume(path: Path, kind: str, cfg, model, opt, dist: Dist) -> int:
+    if not path.exists():
+        return 0
+    src, ckpt = load_checkpoint(path, kind, expect_config=cfg)
+    model.load_state_dict(src.state_dict())
+    if "optimizer" in ckpt:
+        opt.load_state_dict(ckpt["optimizer"])
+    if dist.main:
+        log.info("resumed %s from %s at step %d", kind, path, ckpt["step"])
+    return int(ckpt["step"])
+
+
+def _loop(kind: str, args: RunArgs, model, tcfg: TrainConfig, batch_fn, val_fn, dist: Dist,
+          out: Path, save_fn) -> dict:
+    """The shared optimisation loop. batch_fn(gen) -> loss, stats; val_fn() -> float."""
+    opt = torch.optim.AdamW(model.parameters(), lr=tcfg.lr, weight_decay=tcfg.weight_decay)
+    start = _resume(out / "ckpt.pt", kind, model.cfg, model, opt, dist) if args.resume else 0
+    net = dist.wrap(model)
+    gen = torch.Generator().manual_seed(args.seed * 1_000_003 + dist.rank * 7919 + start)
+    bar = None
+    if dist.main and args.progress:
+        from tqdm import tqdm
+        bar = tqdm(total=tcfg.steps, initial=start, desc=f"train {kind}", unit="step",
+                   dynamic_ncols=True)
+    t0 = time.time()
+    last_val = float("nan")
+    step = start
+    for step in range(start, tcfg.steps):
+        net.train()
+        for g in opt.param_groups:
+            g["lr"] = lr_at(step, tcfg)
+        loss, stats = batch_fn(net, gen)  # loss (), stats {name: float}
+        opt.zero_grad(set_to_none=True)
+        loss.backward()
+        if tcfg.grad_clip:
+            torch.nn.utils.clip_grad_norm_(model.parameters(), tcfg.grad_clip)
+        opt.step()
+        loss = loss.detach()
+        done = step + 1
+        if bar is not None:
+            bar.update(1)
+            bar.set_postfix(loss=f"{float(loss):.4f}", **{k: f"{v:.4f}" for k, v in stats.items()})
+        is_val = done % tcfg.val_every == 0 or done == tcfg.steps
+        if is_val and dist.main:
+            model.eval()
+            last_val = float(val_fn())
+            _append_log(out, {"step": done, "loss": float(loss), **stats, "val": last_val,
+                              "lr": lr_at(step, tcfg), "elapsed_s": round(time.time() - t0, 1)})
+            if bar is not None:
+                bar.write(f"step {done}: train {float(loss):.4f}  val {last_val:.4f}")
+        if (done % tcfg.ckpt_every == 0 or done == tcfg.steps) and dist.main:
+            save_fn(out / "ckpt.pt", done, opt)
+        dist.barrier() if is_val else None
+    if bar is not None:
+        bar.close()
+    return {"steps": tcfg.steps, "start": start, "val": last_val,
+            "seconds": round(time.time() - t0, 1)}
+
+
+# -- stage 1: the auto-encoder ------------------------------------------------------------
+
+def train_sdf(args: RunArgs) -> dict:
+    from .autoencoder import SDFAutoEncoder
+    from .data import load_parts, sample_batch
+    dist = Dist()
+    preset = get_preset(args.preset)
+    cfg = preset.sdf
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    max_sdf = preset.sdf_train.max_sdf
+    train = load_parts(args.data, "train", progress=dist.main and args.progress, max_sdf=max_sdf,
+                       seed=args.seed)
+    try:
+        val = load_parts(args.data, "val", max_sdf=max_sdf, seed=args.seed)
+    except (KeyError, ValueError):
+        val = train
+    tcfg = _train_cfg(preset.sdf_train, args, len(train), dist.world)
+    torch.set_num_threads(max(1, tcfg.threads // dist.world))
+    torch.manual_seed(args.seed)
+    model = SDFAutoEncoder(cfg)
+
+    vgen = torch.Generator().manual_seed(12345)
+    vidx = torch.randperm(len(val), generator=vgen)[:tcfg.val_parts]
+    vbatches = [sample_batch(val, vidx[i:i + tcfg.batch_size], tcfg.n_points, tcfg.n_queries, vgen)
+                for i in range(0, len(vidx), tcfg.batch_size)]
+
+    def batch_fn(net, gen):
+        idx = torch.randint(0, len(train), (tcfg.batch_size,), generator=gen)
+        pts, q, s = sample_batch(train, idx, tcfg.n_points, tcfg.n_queries, gen)
+        return net(pts, q, s)
+
+    def val_fn():
+        c = cfg.sdf_clamp
+        tot = n = 0.0
+        for pts, q, s in vbatches:
+            pred = model.query(model.decode_planes(model.encode(pts)), q)
+            tot += float((pred.clamp(-c, c) - s.clamp(-c, c)).abs().sum())
+            n += s.numel()
+        return tot / max(n, 1)
+
+    def save_fn(path, step, opt):
+        save_checkpoint(path, "sdf", model, data_version=train.data_version, seed=args.seed,
+                        argv=list(args.argv), step=step, optimizer=opt, train_cfg=tcfg,
+                        extra={"data": str(args.data), "train_parts": len(train)})
+
+    res = _loop("sdf", args, model, tcfg, batch_fn, val_fn, dist, out, save_fn)
+    dist.close()
+    return {**res, "out": str(out / "ckpt.pt"), "train_parts": len(train)}
+
+
+# -- stage 2: the prior -------------------------------------------------------------------
+
+@torch.inference_mode()
+def encode_parts(ae, parts, n_points: int, batch: int = 64, seed: int = 0) -> torch.Tensor:
+    """Posterior-mean latents of every part (M, Z), from a fixed random subset of its points."""
+    gen = torch.Generator().manual_seed(seed)
+    zs = []
+    P = parts.points.shape[1]
+    for i in range(0, len(parts), batch):
+        pts = parts.points[i:i + batch]
+        sel = torch.randint(0, P, (pts.shape[0], min(n_points, P)), generator=gen)
+        zs.append(ae.encode(pts[torch.arange(pts.shape[0]).unsqueeze(1), sel].float()))
+    return torch.cat(zs)
+
+
+def pooled_text(texts: list[str], encoder_name: str, expect_dim: int) -> torch.Tensor:
+    from model.encoders.text import get_text_encoder
+    enc = get_text_encoder(encoder_name)
+    if enc.dim != expect_dim:
+        raise ValueError(f"text encoder {encoder_name!r} gives {enc.dim}-d states but the prior "
+                         f"config expects text_dim={expect_dim}")
+    return enc.encode(texts).pooled.float()                   # (T, text_dim)
+
+
+def train_prior(args: RunArgs) -> dict:
+    from .data import load_parts
+    from .prior import ShapePrior
+    dist = Dist()
+    if not args.sdf:
+        raise ValueError("train prior needs --sdf PATH of a trained auto-encoder checkpoint")
+    preset = get_preset(args.preset)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    ae, ae_ckpt = load_checkpoint(args.sdf, "sdf")
+    cfg = replace(preset.prior, z_dim=ae.cfg.z_dim)
+    train = load_parts(args.data, "train", progress=dist.main and args.progress, with_sdf=False)
+    try:
+        val = load_parts(args.data, "val", with_sdf=False)
+    except (KeyError, ValueError):
+        val = train
+    tcfg = _train_cfg(preset.prior_train, args, len(train), dist.world)
+    torch.set_num_threads(max(1, tcfg.threads // dist.world))
+    n_pts = int(ae_ckpt.get("train", {}).get("n_points", 1024))
+    t0 = time.time()
+    z_train = encode_parts(ae, train, n_pts, seed=args.seed)          # (M, Z)
+    z_val = encode_parts(ae, val, n_pts, seed=args.seed + 1)
+    vocab = sorted(set(train.text_vocab) | set(val.text_vocab))
+    emb = pooled_text(vocab, cfg.text_encoder, cfg.text_dim)           # (T, text_dim)
+    lookup = {t: i for i, t in enumerate(vocab)}
+    tid_train = torch.tensor([lookup[t] for t in train.texts])
+    tid_val = torch.tensor([lookup[t] for t in val.texts])
+    if dist.main:
+        log.info("encoded %d train / %d val parts in %.1fs", len(train), len(val), time.time() - t0)
+
+    torch.manual_seed(args.seed)
+    model = ShapePrior(cfg)
+    model.set_latent_stats(z_train)
+
+    vgen_seed = 4242
+    vsel = torch.randperm(len(val), generator=torch.Generator().manual_seed(vgen_seed))[:tcfg.val_parts]
+
+    def batch_fn(net, gen):
+        idx = torch.randint(0, len(train), (tcfg.batch_size,), generator=gen)
+        return net(z_train[idx], emb[tid_train[idx]], gen)
+
+    def val_fn():
+        g = torch.Generator().manual_seed(vgen_seed)
+        with torch.no_grad():
+            loss, stats = model(z_val[vsel], emb[tid_val[vsel]], g)
+        return stats["diffusion"]
+
+    bank = {"latents": z_train.half(), "text_ids": torch.tensor([train.text_vocab.index(t)
+                                                                 for t in train.texts]),
+            "texts": list(train.text_vocab), "object_ids": list(train.object_ids),
+            "part_index": list(train.part_index)}
+
+    def save_fn(path, step, opt):
+        save_checkpoint(path, "prior", model, data_version=train.data_version, seed=args.seed,
+                        argv=list(args.argv), step=step, optimizer=opt, train_cfg=tcfg,
+                        extra={"data": str(args.data), "sdf_checkpoint": str(args.sdf),
+                               "sdf_config": ae_ckpt["config"], "bank": bank})
+
+    res = _loop("prior", args, model, tcfg, batch_fn, val_fn, dist, out, save_fn)
+    dist.close()
+    return {**res, "out": str(out / "ckpt.pt"), "train_parts": len(train)}
+
+
+def export_weights(src: str | os.PathLike, dst: str | os.PathLike, kind: str) -> int:
+    """Strip a training checkpoint (no optimizer) and store fp16 weights. -> bytes written."""
+    model, ckpt = load_checkpoint(src, kind)
+    save_checkpoint(dst, kind, model, data_version=ckpt["data_version"], seed=ckpt["seed"],
+                    argv=ckpt["argv"], step=ckpt["step"], extra=ckpt.get("extra"), half=True)
+    return os.path.getsize(dst)
+
+
+__all__ = ["RunArgs", "train_sdf", "train_prior", "encode_parts", "export_weights",
+           "CheckpointError", "read_checkpoint"]

@@ -1,0 +1,77 @@
+"""Coarse-to-fine meshing on analytic SDFs, the no-surface case and bbox fitting."""
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from model.geometry.meshing import evaluate_grid, fit_to_bbox, grid_levels, mesh_sdf_batch
+
+torch.set_num_threads(1)
+
+
+def sphere(r):
+    return lambda x: x.norm(dim=-1) - r
+
+
+def box(half):
+    h = torch.tensor(half)
+
+    def f(x):
+        q = x.abs() - h
+        return q.clamp_min(0).norm(dim=-1) + q.max(-1).values.clamp_max(0)
+    return f
+
+
+def test_levels():
+    assert grid_levels(64) == [16, 32, 64]
+    assert grid_levels(50) == [25, 50]
+
+
+def test_sphere_area_and_volume():
+    r = 0.7
+    res = mesh_sdf_batch(sphere(r), 1, 64)[0]
+    assert res.ok
+    m = res.mesh
+    assert m.is_watertight
+    assert m.volume == pytest.approx(4 / 3 * math.pi * r ** 3, rel=0.01)
+    assert m.area == pytest.approx(4 * math.pi * r ** 2, rel=0.01)
+    assert res.evaluations < 0.4 * 65 ** 3          # coarse-to-fine skipped most of the grid
+
+
+def test_coarse_to_fine_matches_dense_near_surface():
+    values, _ = evaluate_grid(sphere(0.5), 1, 32)
+    ax = torch.linspace(-1, 1, 33)
+    X, Y, Z = torch.meshgrid(ax, ax, ax, indexing="ij")
+    dense = torch.stack([X, Y, Z], -1).norm(dim=-1) - 0.5
+    near = dense.abs() < 0.1
+    assert torch.allclose(values[0][near], dense[near], atol=1e-5)
+    assert torch.equal(values[0] < 0, dense < 0)
+
+
+def test_thin_and_flat_boxes_are_watertight_and_batched():
+    fns = [box([0.9, 0.5, 0.05]), box([0.9, 0.02, 0.3]), sphere(0.3)]
+
+    def batched(x):   # (3, N, 3)
+        return torch.stack([f(x[i]) for i, f in enumerate(fns)])
+    res = mesh_sdf_batch(batched, 3, 64)
+    expect = [8 * 0.9 * 0.5 * 0.05, 8 * 0.9 * 0.02 * 0.3, 4 / 3 * math.pi * 0.027]
+    for r, v in zip(res, expect):
+        assert r.ok and r.mesh.is_watertight
+        assert r.mesh.volume == pytest.approx(v, rel=0.1)
+
+
+def test_no_surface_is_reported():
+    empty, full = mesh_sdf_batch(lambda x: torch.stack([x[0].norm(dim=-1) + 0.5,
+                                                        -x[1].norm(dim=-1) - 2.0]), 2, 32)
+    assert empty.status == "empty" and not empty.ok and len(empty.mesh.vertices) == 0
+    assert full.status == "full" and len(full.mesh.faces) == 0
+
+
+def test_fit_to_bbox():
+    m = mesh_sdf_batch(sphere(0.8), 1, 32)[0].mesh
+    out = fit_to_bbox(m, [1.0, 2.0, 3.0], [0.2, 0.4, 0.1])
+    lo, hi = out.bounds
+    assert np.allclose((lo + hi) / 2, [1, 2, 3], atol=1e-9)
+    assert np.allclose(hi - lo, [0.2, 0.4, 0.1], atol=1e-9)
+    assert np.allclose(m.bounds, mesh_sdf_batch(sphere(0.8), 1, 32)[0].mesh.bounds)  # input untouched

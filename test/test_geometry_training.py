@@ -1,0 +1,176 @@
+"""Training, checkpoints, the public API and DDP of the shape prior on tiny data."""
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import torch
+
+from model.geometry.autoencoder import SDFAutoEncoder
+from model.geometry.checkpoint import CheckpointError, load_checkpoint, save_checkpoint
+from model.geometry.config import get_preset
+
+torch.set_num_threads(1)
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def prim_data(tmp_path_factory):
+    from model.geometry.data import make_primitive_dataset
+    return make_primitive_dataset(tmp_path_factory.mktemp("prim") / "data", 6,
+                                  n_points=256, n_sdf=1024, seed=3)
+
+
+def box_sdf(x, half):
+    q = x.abs() - half
+    return q.clamp_min(0).norm(dim=-1) + q.max(-1).values.clamp_max(0)
+
+
+def occupancy_iou(ae, pts, half, res=24):
+    ax = torch.linspace(-1, 1, res)
+    grid = torch.stack(torch.meshgrid(ax, ax, ax, indexing="ij"), -1).reshape(1, -1, 3)
+    pred = ae.query(ae.decode_planes(ae.encode(pts)), grid)[0] < 0
+    true = box_sdf(grid[0], half) < 0
+    return float((pred & true).sum()) / float((pred | true).sum())
+
+
+def test_tiny_autoencoder_overfits_one_primitive():
+    torch.manual_seed(0)
+    g = torch.Generator().manual_seed(0)
+    cfg = get_preset("tiny").sdf
+    ae = SDFAutoEncoder(cfg)
+    half = torch.tensor([0.6, 0.35, 0.2])
+    # surface points of the box: random points projected onto a random face
+    p = (torch.rand(256, 3, generator=g) * 2 - 1) * half
+    ax = torch.randint(0, 3, (256,), generator=g)
+    p[torch.arange(256), ax] = half[ax] * torch.sign(torch.rand(256, generator=g) - 0.5)
+    pts = p.unsqueeze(0)
+    before = occupancy_iou(ae.eval(), pts, half)
+    opt = torch.optim.Adam(ae.parameters(), lr=3e-3)
+    ae.train()
+    for _ in range(150):
+        q = (torch.rand(1, 512, 3, generator=g) * 2 - 1)           # half uniform, half near surface
+        q[:, :256] = p[torch.randint(0, 256, (256,), generator=g)] + 0.05 * torch.randn(256, 3, generator=g)
+        loss, _ = ae(pts, q, box_sdf(q[0], half).unsqueeze(0))
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+    after = occupancy_iou(ae.eval(), pts, half)
+    assert after > before + 0.2 and after > 0.7, (before, after)
+
+
+def test_checkpoint_round_trip_and_errors(tmp_path):
+    cfg = get_preset("tiny").sdf
+    ae = SDFAutoEncoder(cfg).eval()
+    path = tmp_path / "a.pt"
+    save_checkpoint(path, "sdf", ae, data_version="dv1", seed=5, argv=["x"], step=7)
+    ae2, ck = load_checkpoint(path, "sdf")
+    assert ck["data_version"] == "dv1" and ck["seed"] == 5 and ck["step"] == 7
+    pts, q = torch.rand(2, 64, 3), torch.rand(2, 32, 3)
+    assert torch.allclose(ae.query(ae.decode_planes(ae.encode(pts)), q),
+                          ae2.query(ae2.decode_planes(ae2.encode(pts)), q))
+    with pytest.raises(CheckpointError, match="'prior' one is needed"):
+        load_checkpoint(path, "prior")
+    other = get_preset("small").sdf
+    with pytest.raises(CheckpointError, match="differs from the requested"):
+        load_checkpoint(path, "sdf", expect_config=other)
+    bad = tmp_path / "bad.pt"
+    bad.write_bytes(path.read_bytes()[:200])
+    with pytest.raises(CheckpointError, match="corrupt.*re-run `artformer train sdf`"):
+        load_checkpoint(bad, "sdf")
+    with pytest.raises(CheckpointError, match="does not exist"):
+        load_checkpoint(tmp_path / "missing.pt", "sdf")
+    half = tmp_path / "half.pt"
+    save_checkpoint(half, "sdf", ae, half=True)
+    assert half.stat().st_size < path.stat().st_size
+
+
+def _cli(*args):
+    from model.cli import main
+    return main(list(args))
+
+
+def test_train_commands_api_and_resume(prim_data, tmp_path):
+    sdf_out, prior_out = tmp_path / "sdf", tmp_path / "prior"
+    assert _cli("train", "sdf", "--data", str(prim_data), "--out", str(sdf_out), "--preset", "tiny",
+                "--steps", "30", "--no-progress", "--threads", "1") == 0
+    ck = torch.load(sdf_out / "ckpt.pt", weights_only=True)
+    assert ck["step"] == 30 and ck["data_version"] == "primitives-3-6" and "optimizer" in ck
+    assert ck["argv"][:3] == ["artformer", "train", "sdf"]
+    # resume continues from step 30 to 40
+    assert _cli("train", "sdf", "--data", str(prim_data), "--out", str(sdf_out), "--preset", "tiny",
+                "--steps", "40", "--resume", "--no-progress", "--threads", "1") == 0
+    assert torch.load(sdf_out / "ckpt.pt", weights_only=True)["step"] == 40
+    logs = (sdf_out / "log.jsonl").read_text().splitlines()
+    assert len(logs) >= 2 and '"val"' in logs[-1]
+    assert _cli("train", "prior", "--data", str(prim_data), "--out", str(prior_out), "--preset",
+                "tiny", "--sdf", str(sdf_out / "ckpt.pt"), "--steps", "20", "--no-progress",
+                "--threads", "1", "--export", str(tmp_path / "prior_fp16.pt")) == 0
+
+    from model.geometry.api import ShapeModel
+    shape = ShapeModel.load(sdf_out / "ckpt.pt", tmp_path / "prior_fp16.pt")
+    texts = ["primitives, body", "primitives, knob", "a label never seen"]
+    cs = shape.semantic_condition(texts)
+    assert cs.shape == (3, get_preset("tiny").prior.cs_dim)
+    P = shape.label_logits(texts)
+    z = shape.sample_from_logits(P, cs, steps=5, generator=torch.Generator().manual_seed(0))
+    assert z.shape == (3, get_preset("tiny").sdf.z_dim)
+    Pgt = shape.code_distribution(z)
+    assert torch.allclose(Pgt.sum(-1), torch.ones(3, 4), atol=1e-5)
+    meshes = shape.decode_meshes(z, resolution=32)
+    assert len(meshes) == 3
+    assert all(m.metadata["surface"] in ("ok", "empty", "full") for m in meshes)
+    zr, idx = shape.retrieve(z, texts)
+    bank = shape.bank
+    for b in range(2):   # restricted to the same label text
+        assert bank["texts"][int(bank["text_ids"][idx[b]])] == texts[b]
+    assert torch.allclose(zr, bank["latents"][idx].float())
+    enc = shape.encode(torch.rand(2, 128, 3) * 0.5)
+    assert enc.shape == (2, get_preset("tiny").sdf.z_dim)
+    # prior checkpoint paired with the wrong auto-encoder is refused
+    wrong = tmp_path / "wrong.pt"
+    cfg = get_preset("tiny").sdf
+    cfg.z_dim = 16
+    save_checkpoint(wrong, "sdf", SDFAutoEncoder(cfg))
+    with pytest.raises(CheckpointError, match="matching"):
+        ShapeModel.load(wrong, tmp_path / "prior_fp16.pt")
+
+
+def test_eval_and_bench_commands(prim_data, tmp_path, capsys):
+    sdf_out, prior_out = tmp_path / "sdf", tmp_path / "prior"
+    _cli("train", "sdf", "--data", str(prim_data), "--out", str(sdf_out), "--preset", "tiny",
+         "--steps", "10", "--no-progress", "--threads", "1")
+    _cli("train", "prior", "--data", str(prim_data), "--out", str(prior_out), "--preset", "tiny",
+         "--sdf", str(sdf_out / "ckpt.pt"), "--steps", "10", "--no-progress", "--threads", "1")
+    capsys.readouterr()
+    assert _cli("eval", "geometry", "--data", str(prim_data), "--sdf", str(sdf_out / "ckpt.pt"),
+                "--prior", str(prior_out / "ckpt.pt"), "--resolution", "32", "--labels", "2",
+                "--samples-per-label", "2", "--steps", "5", "--threads", "1",
+                "--json", str(tmp_path / "e.json")) == 0
+    import json
+    res = json.loads((tmp_path / "e.json").read_text())
+    rec = res["reconstruction"]
+    assert rec["parts"] > 0 and 0.0 <= rec["iou_mean"] <= 1.0 or rec["empty"] == rec["parts"]
+    assert 0.0 <= res["prior"]["yield"] <= 1.0
+    assert _cli("bench", "geometry", "--sdf", str(sdf_out / "ckpt.pt"), "--prior",
+                str(prior_out / "ckpt.pt"), "--resolution", "32", "--parts", "2", "--steps", "5",
+                "--repeats", "1", "--threads", "1") == 0
+    out = capsys.readouterr().out
+    assert "mesh_one_part_ms" in out and "ddim_2_parts_5_steps_ms" in out
+    assert _cli("eval", "geometry", "--data", str(prim_data), "--sdf",
+                str(tmp_path / "nothing.pt")) == 1
+
+
+def test_ddp_two_processes(prim_data, tmp_path):
+    torchrun = Path(sys.executable).parent / "torchrun"
+    if not torchrun.exists():
+        pytest.skip("torchrun not installed in this environment")
+    env = dict(os.environ, OMP_NUM_THREADS="1", PYTHONPATH=str(ROOT))
+    cmd = [str(torchrun), "--standalone", "--nproc_per_node", "2", "-m", "model", "train", "sdf",
+           "--data", str(prim_data), "--out", str(tmp_path / "ddp"), "--preset", "tiny",
+           "--steps", "4", "--no-progress", "--threads", "2"]
+    r = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=240, cwd=tmp_path)
+    assert r.returncode == 0, r.stderr[-3000:]
+    ck = torch.load(tmp_path / "ddp" / "ckpt.pt", weights_only=True)
+    assert ck["step"] == 4
