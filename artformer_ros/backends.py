@@ -4,7 +4,8 @@
   node's parameters (``NodeSettings.generation_config()``).
 * ``example`` — no model: every request exports the built-in example object of
   ``model.core.example`` (the bottle when the prompt mentions a bottle, else the cabinet).
-  For plumbing demos and fast tests of the node only; it ignores seeds and images' contents.
+  For plumbing demos and fast tests of the node only; it ignores seeds and images' contents,
+  and exports with one convex hull per part as collision and no preview (speed).
 
 Heavy imports (torch, trimesh, the model) happen inside ``load_backend``, which the node runs
 on its loading thread, so the node is up and answering within a second.
@@ -68,10 +69,11 @@ class ExampleBackend:
                 for o in objs]
 
     def export(self, result, out_dir: str):
-        from model.export import export_object
+        from model.export import CollisionConfig, export_object
 
+        # plumbing speed: one convex hull per part and no preview picture
         return export_object(result.obj, out_dir, mesh_format=self._settings.mesh_format,
-                             preview=False,
+                             preview=False, collision=CollisionConfig(method="hull"),
                              provenance={"prompt": result.prompt, "seed": result.seed,
                                          "backend": "example (built-in object, no model)"})
 
