@@ -126,8 +126,16 @@ def write_partnet(obj: ArticulatedObject, folder: os.PathLike, *,
         v2.append(_v2_entry(i, p, o))
         sem_lines.append(f"{link[i]} {_JOINT_WORD[jt]} {p.label}")
     robot = yourdfpy.Robot(name=obj.name, links=links, joints=joints)
-    urdf = yourdfpy.URDF(robot=robot, build_scene_graph=False, load_meshes=False,
-                         filename_handler=lambda fname: str(folder / fname))
+    # Mesh paths stay relative to the folder (as in the dataset); yourdfpy would warn that it
+    # cannot resolve them from the working directory, which is expected here.
+    ylog = logging.getLogger("yourdfpy")
+    level = ylog.level
+    ylog.setLevel(logging.ERROR)
+    try:
+        urdf = yourdfpy.URDF(robot=robot, build_scene_graph=False, load_meshes=False,
+                             filename_handler=yourdfpy.filename_handler_null)
+    finally:
+        ylog.setLevel(level)
     xml = etree.tostring(urdf.write_xml(), encoding="unicode", pretty_print=True)
     atomic_write_bytes(folder / "mobility.urdf", xml.encode())
     atomic_write_json(folder / "mobility_v2.json", v2)
