@@ -1,41 +1,10 @@
-"""`artformer eval` end to end on a tiny prepared dataset (baselines; the model run needs the
-pipeline's tiny checkpoints and is in test_metrics_eval_model.py)."""
+"""`artformer eval` / `artformer bench` end to end on a tiny prepared dataset, with tiny
+random-weight checkpoints of the pipeline (the CI smoke run of the whole evaluation)."""
 import json
-from pathlib import Path
 
-import numpy as np
 import pytest
 
-from model.data import format as fmt
-
-
-def build_prepared(root: Path, n_train: int = 6, n_test: int = 3, seed: int = 11) -> Path:
-    """A minimal prepared dataset (records + meshes) from the procedural generator."""
-    from model.data.describe import describe
-    from model.data.synth import generate_object
-    ids = {"train": [], "val": [], "test": []}
-    for i in range(n_train + n_test):
-        obj = generate_object(seed=seed, index=i)
-        split = "train" if i < n_train else "test"
-        oid = f"obj{i:03d}"
-        toks, types, parents, labels = obj.tokens()
-        order = obj.topological_order()
-        rec = fmt.ObjectRecord(id=oid, category=obj.category, split=split, labels=labels,
-                               parents=parents.tolist(), joint_types=types.tolist(),
-                               tokens=toks.tolist(),
-                               descriptions=describe(obj, np.random.default_rng(i)),
-                               summary=obj.summary(),
-                               part_names=[obj.parts[k].name for k in order])
-        fmt.save_record(root, rec)
-        mdir = root / "meshes" / oid
-        mdir.mkdir(parents=True, exist_ok=True)
-        for k, j in enumerate(order):
-            obj.parts[j].mesh.export(mdir / f"{k}.obj")
-        ids[split].append(oid)
-    fmt.atomic_write_json(root / "manifest.json", {
-        "format": fmt.FORMAT_VERSION, "data_version": "test", "source": "synth", "seed": seed,
-        "splits": ids, "labels": [], "categories": []})
-    return root
+from test_metrics_common import build_prepared, make_tiny_checkpoints
 
 
 @pytest.fixture(scope="module")
@@ -73,3 +42,54 @@ def test_eval_baselines_only(prepared, tmp_path):
     assert "| retrieval |" in md and "ArtFormer (paper)" in md
     for f in ("por.png", "id_set_metrics.png", "alignment.png", "validity.png"):
         assert (out / f).stat().st_size > 1000
+
+
+@pytest.fixture(scope="module")
+def tiny_checkpoints(tmp_path_factory):
+    root = tmp_path_factory.mktemp("ckpt")
+    return (make_tiny_checkpoints(root / "full"),
+            make_tiny_checkpoints(root / "no_tpe", ablation="no_tpe"))
+
+
+def test_eval_tiny_checkpoint_with_ablation(prepared, tiny_checkpoints, tmp_path):
+    """The CI run: generation with the pipeline + every metric + baselines + an ablation row."""
+    from model.metrics.commands import main
+    full, no_tpe = tiny_checkpoints
+    out = tmp_path / "eval"
+    rc = main(["eval", "--checkpoint", str(full), "--data", str(prepared), "--preset", "tiny",
+               "--ablation", f"no_tpe={no_tpe}", "--out", str(out)])
+    assert rc == 0
+    res = json.loads((out / "results.json").read_text())
+    rows = {r["name"]: r for r in res["rows"]}
+    assert list(rows) == ["model", "no_tpe", "retrieval", "train (floor)", "test (GT)"]
+    for name in ("model", "no_tpe"):
+        r = rows[name]
+        assert r["n_prompts"] == res["n_test"] + res["n_freeform"] == 6
+        assert r["n_failed"] < r["n_prompts"], r["errors"]
+        assert r["por"] is not None and r["por"] >= 0 and r["por_max"] >= r["por"] - 1e-12
+        assert r["mmd"] > 0 and 0 < r["cov"] <= 1 and 0 <= r["nna"] <= 1
+        assert 0 <= r["alignment"] <= 1
+        assert r["diversity"] is not None and r["diversity"] >= 0
+        assert 0 <= r["validity"] <= 1
+        assert {"text_encoding", "decoding", "diffusion", "meshing"} <= set(r["timings_median"])
+    # ablation rows differ from the model row (a different network made them)
+    assert rows["model"]["nearest_reference_id"] != rows["no_tpe"]["nearest_reference_id"]
+    md = (out / "results.md").read_text()
+    assert "| model |" in md and "| no_tpe |" in md
+    assert (out / "diversity.png").exists()
+
+
+def test_bench_tiny_checkpoint_in_fresh_process(tiny_checkpoints, tmp_path):
+    from model.metrics.commands import main
+    out = tmp_path / "bench.json"
+    rc = main(["bench", "--checkpoint", str(tiny_checkpoints[0]), "--n", "3", "--threads", "1",
+               "--steps", "3", "--resolution", "16", "--out", str(out)])
+    assert rc == 0
+    res = json.loads(out.read_text())
+    assert res["n"] == 3
+    for stage in ("text_encoding", "decoding", "diffusion", "meshing", "export", "total"):
+        s = res["stages"][stage]
+        assert s["n"] == 3 and 0 <= s["median"] <= s["p95"]
+    # the high-water mark covers at least the loaded model and torch
+    assert res["peak_rss_mb"] >= res["rss_after_load_mb"] > 100
+    assert res["load_seconds"] > 0

@@ -11,7 +11,7 @@ from pathlib import Path
 # Eval sizes. `tiny` is the CI smoke run (minutes on a laptop CPU); `full` the DESIGN §7 one.
 EVAL_PRESETS: dict[str, dict] = {
     "tiny": dict(n=3, n_freeform=3, points=256, poses=3, por_states=3, diversity_prompts=1,
-                 diversity_samples=2, steps=5, resolution=24),
+                 diversity_samples=2, steps=5, resolution=24, collision="hull"),
     "full": dict(),
 }
 
@@ -50,6 +50,10 @@ def _eval_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-validity", action="store_true")
     p.add_argument("--no-plots", action="store_true")
     p.add_argument("--workers", type=int, default=1, help="KD-tree query threads")
+    p.add_argument("--collision", default=None,
+                   choices=["pipeline", "auto", "hull", "vhacd", "none"],
+                   help="URDF collision geometry for validity (default: the generator's own "
+                        "export; tiny preset: hull)")
     p.add_argument("--steps", type=int, default=None, help="DDIM steps override")
     p.add_argument("--resolution", type=int, default=None, help="meshing resolution override")
     p.add_argument("-v", "--verbose", action="store_true")
@@ -84,7 +88,7 @@ def eval_main(argv: list[str]) -> int:
         ablations[k] = v
     kw = dict(EVAL_PRESETS[args.preset])
     for name in ("n", "n_freeform", "points", "poses", "por_states", "diversity_prompts",
-                 "diversity_samples", "steps", "resolution"):
+                 "diversity_samples", "steps", "resolution", "collision"):
         v = getattr(args, name)
         if v is not None:
             kw[name] = v

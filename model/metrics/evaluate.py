@@ -63,7 +63,8 @@ class EvalConfig:
     train_floor: bool = True
     validity: bool = True
     workers: int = 1                            # KD-tree query threads
-    collision: str = "hull"                     # collision geometry of the baselines' URDFs
+    collision: str = "pipeline"                 # URDF collision geometry: "pipeline" (the
+                                                # generator's own export), auto|hull|vhacd|none
     steps: Optional[int] = None                 # generation overrides (None = config default)
     resolution: Optional[int] = None
     text_encoder: str = "all-minilm-l6-v2"
@@ -87,12 +88,13 @@ class MethodOutput:
 
 
 def _export(obj: ArticulatedObject, folder: Path, collision: str = "hull") -> Optional[str]:
-    """Baseline objects' URDFs (one convex hull per part: validity checks loading and joint
-    motion, which the collision detail does not change; V-HACD costs seconds a part)."""
+    """Write a URDF without preview. ``collision`` "pipeline" = the exporter's default
+    (V-HACD for non-convex parts, seconds a part); "hull" = one convex hull per part (validity
+    checks loading and joint motion, which the collision detail does not change)."""
     from model.export.urdf import CollisionConfig, export_object
+    cc = CollisionConfig() if collision == "pipeline" else CollisionConfig(method=collision)
     try:
-        return export_object(obj, folder, preview=False,
-                             collision=CollisionConfig(method=collision)).urdf_path
+        return export_object(obj, folder, preview=False, collision=cc).urdf_path
     except Exception as e:
         log.warning("export of %s failed: %s", obj.name, e)
         return None
@@ -129,8 +131,12 @@ def generate_method(name: str, checkpoint: Optional[str], prompts: list[str], cf
         res.timings.append(dict(g.timings))
         urdf = None
         if cfg.validity:
+            folder = out_dir / name / f"{i:03d}"
             try:
-                urdf = gen.export(g, str(out_dir / name / f"{i:03d}")).urdf_path
+                if cfg.collision == "pipeline":
+                    urdf = gen.export(g, str(folder), preview=False).urdf_path
+                else:
+                    urdf = _export(g.obj, folder, cfg.collision)
             except Exception as e:
                 res.errors.append(f"export {i}: {type(e).__name__}: {e}")
         res.urdfs.append(urdf)
