@@ -138,6 +138,43 @@ def test_body_collision_keeps_the_openings(exported, objects):
 
 
 @pytest.mark.parametrize("name", ["cabinet", "bottle"])
+def test_collision_geometry_is_clear_at_rest_and_stays_put(exported, name):
+    """No collision piece touches another part at rest (MuJoCo finds no contact), so under
+    gravity the drawers stay shut instead of being pushed out by overlapping hulls."""
+    import mujoco
+    m = mujoco.MjModel.from_xml_path(exported[name].urdf_path)
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    assert d.ncon == 0, [(m.body(m.geom_bodyid[c.geom1]).name, m.body(m.geom_bodyid[c.geom2]).name)
+                         for c in d.contact[:d.ncon]]
+    mujoco.mj_step(m, d, nstep=250)                     # 0.5 s with gravity
+    assert np.abs(d.qpos).max() < 2e-3, d.qpos
+
+
+def test_collision_methods(objects):
+    from model.export.collision import cells_decompose, collision_pieces, vhacd_decompose
+    from model.core import meshops
+    cab = objects["cabinet"]
+    body, drawer = cab.parts[0].mesh, cab.parts[1].mesh
+    cells = cells_decompose(body)
+    assert 3 < len(cells) <= 32
+    assert sum(p.volume for p in cells) == pytest.approx(body.volume, rel=0.02)   # tight
+    assert sum(meshops.intersection_volume(p, drawer) for p in cells) < 1e-9
+    hull = collision_pieces(body, CollisionConfig(method="hull"))
+    assert len(hull) == 1 and meshops.intersection_volume(hull[0], drawer) > 1e-3  # a block
+    assert collision_pieces(body, CollisionConfig(method="none")) == []
+    # The bottle body is nearly convex, but its hull would swallow the cap: not used.
+    bottle = objects["bottle"]
+    pcs = collision_pieces(bottle.parts[0].mesh, obstacles=[bottle.parts[1].mesh])
+    assert len(pcs) > 1
+    assert len(collision_pieces(bottle.parts[0].mesh)) == 1
+    v = vhacd_decompose(cab.parts[cab.index_of("door_handle")].mesh, CollisionConfig(max_hulls=4))
+    assert 1 <= len(v) <= 4 and all(p.is_volume for p in v)
+    with pytest.raises(ValueError, match="unknown collision method"):
+        collision_pieces(body, CollisionConfig(method="magic"))
+
+
+@pytest.mark.parametrize("name", ["cabinet", "bottle"])
 def test_loads_in_simulators_joints_move_and_poses_match(exported, objects, name):
     rep = check_urdf(exported[name].urdf_path, objects[name])
     assert set(rep.sims) == {"yourdfpy", "pybullet", "mujoco"}

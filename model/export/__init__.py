@@ -6,13 +6,16 @@ functions that need them.
 from __future__ import annotations
 
 __all__ = ["export_object", "import_urdf", "check_urdf", "render_views", "write_preview",
-           "URDFImportError", "CollisionConfig"]
+           "URDFImportError", "CollisionConfig", "collision_pieces"]
 
 
 def __getattr__(name):
-    if name in ("export_object", "CollisionConfig"):
-        from . import urdf
-        return getattr(urdf, name)
+    if name == "export_object":
+        from .urdf import export_object
+        return export_object
+    if name in ("CollisionConfig", "collision_pieces"):
+        from . import collision
+        return getattr(collision, name)
     if name in ("import_urdf", "URDFImportError"):
         from . import importer
         return getattr(importer, name)

@@ -25,12 +25,13 @@ import os
 import shutil
 import tempfile
 import time
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from model.core.objects import ArticulatedObject, JointType, ObjectValidationError, Part
+
+from .collision import CollisionConfig, collision_pieces  # noqa: F401  (re-exported)
 
 log = logging.getLogger(__name__)
 
@@ -39,29 +40,18 @@ MESH_FORMATS = ("obj", "stl", "glb")
 HELPER_SUFFIX = "_screw_helper"
 SLIDE_SUFFIX = "_slide"
 JOINT_SUFFIX = "_joint"
-# Near-massless helper link of a screw: pybullet and MuJoCo both load and move a screw with
-# mass 0 on the helper (measured, docs/export.md), but a zero mass makes the joint-space mass
-# matrix singular for dynamics in some engines, so a negligible positive mass is written.
+# Near-massless helper link of a screw: pybullet loads a helper of mass 0, MuJoCo refuses it
+# ("mass and inertia of moving bodies must be larger than mjMINVAL", measured), so the
+# helper gets a negligible positive mass and inertia that both accept.
 HELPER_MASS = 1e-6          # kg
 HELPER_INERTIA = 1e-9       # kg m^2 (diagonal)
 MIN_MASS = 1e-4             # kg, floor for tiny / degenerate parts
-NEARLY_CONVEX = 0.9         # volume / hull volume above which one hull is the collision
 LABEL_COLOURS = {
     "body": (0.72, 0.60, 0.45), "drawer": (0.85, 0.75, 0.55), "door": (0.80, 0.68, 0.50),
     "handle": (0.25, 0.25, 0.28), "knob": (0.25, 0.25, 0.28), "button": (0.8, 0.2, 0.2),
     "cap": (0.15, 0.35, 0.75), "lid": (0.55, 0.55, 0.6),
 }
 DEFAULT_COLOUR = (0.6, 0.6, 0.65)
-
-
-@dataclass
-class CollisionConfig:
-    """How collision geometry is made. ``method``: "auto" (one convex hull for nearly convex
-    parts, V-HACD pieces otherwise), "vhacd", "hull" or "none"."""
-    method: str = "auto"
-    max_hulls: int = 32
-    resolution: int = 50_000
-    max_error_percent: float = 0.5
 
 
 def link_name(part: Part) -> str:
@@ -146,37 +136,6 @@ def make_positive_definite(inertia: np.ndarray, rel_floor: float = 1e-6) -> np.n
     # Principal moments of a real body obey a + b >= c; numerically flat parts can break it.
     w[2] = min(w[2], w[0] + w[1])
     return V @ np.diag(w) @ V.T
-
-
-def collision_pieces(mesh, cfg: CollisionConfig) -> list:
-    """Convex pieces (trimesh) approximating ``mesh`` for collision."""
-    import trimesh
-    if mesh is None or len(mesh.faces) == 0 or cfg.method == "none":
-        return []
-    try:
-        hull = mesh.convex_hull
-    except Exception:
-        return [mesh]
-    method = cfg.method
-    if method == "auto":
-        ratio = mesh.volume / hull.volume if (mesh.is_watertight and hull.volume > 1e-12) else 0.0
-        method = "hull" if ratio >= NEARLY_CONVEX else "vhacd"
-    if method == "hull":
-        return [hull]
-    if method != "vhacd":
-        raise ValueError(f"unknown collision method {cfg.method!r}; use auto, vhacd, hull or none")
-    try:
-        pieces = trimesh.decomposition.convex_decomposition(
-            mesh, maxConvexHulls=cfg.max_hulls, resolution=cfg.resolution,
-            minimumVolumePercentErrorAllowed=cfg.max_error_percent)
-    except Exception as e:  # vhacdx missing or failing: a hull is still a valid collision
-        log.warning("convex decomposition failed (%s); using the convex hull", e)
-        return [hull]
-    if isinstance(pieces, dict):
-        pieces = [pieces]
-    out = [trimesh.Trimesh(**p) if isinstance(p, dict) else p for p in pieces]
-    out = [m for m in out if len(m.faces) >= 4 and m.volume > 1e-12]
-    return out or [hull]
 
 
 # -- export ---------------------------------------------------------------------------------
@@ -315,7 +274,8 @@ def _build_robot(obj, robot_name, tmp, uri_base, fmt, density, collision):
             visuals.append(y.Visual(name=f"{lname}_visual", origin=_origin(-o),
                                     geometry=y.Geometry(mesh=y.Mesh(filename=f"{uri_base}/{rel}")),
                                     material=y.Material(name=mat_name)))
-            for k, piece in enumerate(collision_pieces(p.mesh, collision)):
+            others = [q.mesh for q in obj.parts if q is not p and q.mesh is not None]
+            for k, piece in enumerate(collision_pieces(p.mesh, collision, others)):
                 crel = f"meshes/{lname}_collision_{k}.{cfmt}"
                 _write_mesh(piece, tmp / crel, cfmt)
                 collisions.append(y.Collision(name=f"{lname}_collision_{k}", origin=_origin(-o),
