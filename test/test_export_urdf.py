@@ -269,3 +269,14 @@ def test_continuous_joint_has_no_position_limits(objects, tmp_path):
     assert j.get("type") == "continuous"
     assert j.find("limit").get("lower") is None and j.find("limit").get("upper") is None
     assert check_urdf(res.urdf_path, obj).ok
+
+
+def test_object_without_meshes_exports_and_loads(objects, tmp_path):
+    """Tokens only (no geometry yet): links without visuals, still valid for the simulators."""
+    from model.core import ArticulatedObject
+    toks, types, parents, labels = objects["cabinet"].tokens()
+    obj = ArticulatedObject.from_tokens(toks, types, parents, labels, category="StorageFurniture")
+    res = export_object(obj, tmp_path / "bare")
+    assert res.mesh_paths == {}
+    rep = check_urdf(res.urdf_path, obj)
+    assert rep.ok, rep.summary()
