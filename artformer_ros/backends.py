@@ -27,8 +27,9 @@ class ModelBackend:
     """Adapter around ``Generator`` (generate + export)."""
     name = "model"
 
-    def __init__(self, generator):
+    def __init__(self, generator, settings: NodeSettings):
         self.generator = generator
+        self._settings = settings   # live: preview and mesh_uri are read per request
 
     def generate(self, *, text: Optional[str], image: Optional[np.ndarray], seed: int,
                  samples: int) -> list:
@@ -37,7 +38,8 @@ class ModelBackend:
         return self.generator.generate(text=text, seed=seed, samples=samples)
 
     def export(self, result, out_dir: str):
-        return self.generator.export(result, out_dir)
+        return self.generator.export(result, out_dir, preview=self._settings.preview,
+                                     mesh_uri=self._settings.mesh_uri)
 
 
 class ExampleBackend:
@@ -74,6 +76,7 @@ class ExampleBackend:
         # plumbing speed: one convex hull per part and no preview picture
         return export_object(result.obj, out_dir, mesh_format=self._settings.mesh_format,
                              preview=False, collision=CollisionConfig(method="hull"),
+                             mesh_uri=self._settings.mesh_uri,
                              provenance={"prompt": result.prompt, "seed": result.seed,
                                          "backend": "example (built-in object, no model)"})
 
@@ -90,5 +93,5 @@ def load_backend(settings: NodeSettings):
         torch.set_num_threads(settings.threads)
         from model.pipeline.generator import Generator
 
-        return ModelBackend(Generator.load(settings.generation_config()))
+        return ModelBackend(Generator.load(settings.generation_config()), settings)
     raise ValueError(f"unknown backend {settings.backend!r}")

@@ -35,16 +35,20 @@ PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec("output_dir", "~/.ros/artformer_ros/output",
               "one folder per request is written here (URDF, meshes, metadata)", read_only=True),
     ParamSpec("resolution", 64, "effective marching-cubes resolution per part",
-              read_only=True, int_range=(8, 512)),
+              read_only=True, int_range=(8, 256)),
     ParamSpec("steps", 50, "DDIM sampling steps of the shape prior",
               read_only=True, int_range=(1, 1000)),
     ParamSpec("guidance", 1.0, "classifier-free guidance scale of the shape prior (1 = off)",
               read_only=True, float_range=(0.0, 20.0)),
     ParamSpec("mesh_format", "obj", "mesh file format of the exported parts",
               read_only=True, choices=MESH_FORMATS),
+    ParamSpec("preview", True, "write preview.png (openness 0 / 0.5 / 1) beside each URDF; "
+              "false saves its rendering time (the example backend never writes one)"),
+    ParamSpec("mesh_uri", "file", "mesh references in the URDF: 'file' (absolute file:// "
+              "paths) or a 'package://<pkg>/<path>' prefix that replaces the output folder"),
     ParamSpec("device", "cpu", "torch device: cpu, cuda or cuda:N", read_only=True),
     ParamSpec("threads", 2, "torch CPU threads used by generation",
-              read_only=True, int_range=(1, 256)),
+              read_only=True, int_range=(1, 64)),
     ParamSpec("seed", -1, "seed of requests that do not give one; -1 = a fresh random seed "
               "per request", int_range=(-1, 2**31 - 1)),
     ParamSpec("samples", 1, "objects generated per request (the first is published on "
@@ -89,6 +93,9 @@ def validate(name: str, value: Any) -> Optional[str]:
         v = value.strip().lower()
         if not (v == "cpu" or v == "cuda" or (v.startswith("cuda:") and v[5:].isdigit())):
             return f"device must be 'cpu', 'cuda' or 'cuda:N', got {value!r}"
+    if name == "mesh_uri" and value != "file" and not (
+            value.startswith("package://") and len(value.rstrip("/")) > len("package://")):
+        return f"mesh_uri must be 'file' or start with 'package://<package>', got {value!r}"
     if name == "output_dir" and not str(value).strip():
         return "output_dir must not be empty"
     return None
@@ -104,6 +111,8 @@ class NodeSettings:
     steps: int = 50
     guidance: float = 1.0
     mesh_format: str = "obj"
+    preview: bool = True
+    mesh_uri: str = "file"
     device: str = "cpu"
     threads: int = 2
     seed: int = -1

@@ -223,7 +223,9 @@ def test_node_settings_defaults_match_the_parameter_table():
     ("queue_size", 0, r"\[1, 1000\]"), ("seed", -2, "seed must be in"),
     ("seed", 1.5, "type int"), ("samples", True, "type int"), ("backend", "gpu", "one of"),
     ("mesh_format", "ply", "one of"), ("device", "tpu", "cuda:N"), ("device", "cuda:x", "cuda"),
-    ("output_dir", " ", "empty"), ("guidance", -1.0, "guidance"), ("retention", 0, "retention"),
+    ("output_dir", " ", "empty"), ("mesh_uri", "http://x", "package://"),
+    ("mesh_uri", "package://", "package://"), ("resolution", 512, "resolution"),
+    ("preview", 1, "type bool"), ("guidance", -1.0, "guidance"), ("retention", 0, "retention"),
 ])
 def test_invalid_parameter_values_have_a_reason(name, value, match):
     reason = validate(name, value)
@@ -234,7 +236,8 @@ def test_invalid_parameter_values_have_a_reason(name, value, match):
 
 def test_valid_parameter_values_pass():
     for name, value in [("device", "cuda:1"), ("guidance", 2), ("seed", -1), ("seed", 0),
-                        ("mesh_format", "glb"), ("backend", "example")]:
+                        ("mesh_format", "glb"), ("backend", "example"),
+                        ("mesh_uri", "package://artformer_ros/objects"), ("preview", False)]:
         assert validate(name, value) is None
     s = NodeSettings.from_values({"guidance": 2, "queue_size": 9, "use_sim_time": False})
     assert s.guidance == 2.0 and isinstance(s.guidance, float) and s.queue_size == 9

@@ -1,0 +1,100 @@
+"""Headline tests on the real generation pipeline (backend "model"): the node in its own
+process loads Generator from tiny random-weight checkpoints of all stages (text + image) —
+the real code path, not the shipped weights' quality — and answers a text request (URDF
+latched for a late subscriber) and an image request. Localhost, random ROS domain."""
+import os
+import random
+import uuid
+
+import numpy as np
+import pytest
+
+rclpy = pytest.importorskip("rclpy")
+torch = pytest.importorskip("torch")
+
+from artformer_ros.client import GeneratorClient, start_node, stop_node  # noqa: E402
+
+pytestmark = pytest.mark.ros
+
+
+def _tiny_checkpoints(folder):
+    """transformer/sdf/prior (the metrics tests' helper) + an image stage built from the same
+    random transformer (an image checkpoint is a transformer checkpoint with an image
+    condition and the frozen EfficientNet-Lite0 config)."""
+    from test_metrics_common import make_tiny_checkpoints
+
+    make_tiny_checkpoints(folder, seed=0)
+    ck = torch.load(folder / "transformer.pt", map_location="cpu", weights_only=False)
+    ck.update(condition="image", image_encoder={"config": {}, "tail": {}})
+    torch.save(ck, folder / "image.pt")
+    return folder
+
+
+@pytest.fixture(scope="module")
+def model_node(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("ros_model")
+    ckpt = _tiny_checkpoints(tmp / "ckpt")
+    saved = {k: os.environ.get(k) for k in ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE")}
+    os.environ["ROS_DOMAIN_ID"] = str(random.SystemRandom().randint(1, 100))
+    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    ctx = rclpy.Context()
+    rclpy.init(context=ctx)
+    ns = f"/m_{uuid.uuid4().hex[:8]}"
+    log = tmp / "node.log"
+    proc = start_node({"backend": "model", "checkpoint": str(ckpt), "output_dir": str(tmp / "out"),
+                       "resolution": 24, "steps": 4, "preview": False, "threads": 1},
+                      log_path=str(log), extra_ros_args=["-r", f"__ns:={ns}"])
+    client = GeneratorClient(context=ctx, namespace=ns)
+    yield {"proc": proc, "client": client, "ctx": ctx, "ns": ns, "log": log, "tmp": tmp}
+    client.close()
+    rc = stop_node(proc, 60)
+    rclpy.try_shutdown(context=ctx)
+    for k, v in saved.items():
+        if v is None:
+            os.environ.pop(k, None)
+        else:
+            os.environ[k] = v
+    assert rc == 0
+    assert "Traceback" not in log.read_text()
+
+
+def test_request_while_the_model_loads_gets_a_clear_error(model_node):
+    c = model_node["client"]
+    assert c.spin_until(lambda: c.status is not None and
+                        c.text_pub.get_subscription_count() > 0, 30), c.status
+    assert c.status["state"] == "loading"   # torch + text/image encoders take seconds
+    res = c.wait_result(c.send_text("a cabinet"), 10)
+    assert res["status"] == "error" and "still loading" in res["message"]
+
+
+def test_text_request_gives_a_urdf_that_a_late_subscriber_receives(model_node):
+    c = model_node["client"]
+    assert c.wait_ready(120), (c.status, model_node["log"].read_text())
+    res = c.wait_result(c.send_text("a storage cabinet with two drawers", seed=3), 180)
+    assert res is not None and res["status"] == "done", res
+    assert res["backend"] == "model" and res["seed"] == 3 and res["kind"] == "text"
+    assert {"text_encoding", "decoding", "diffusion", "meshing"} <= set(res["timings"]["stages"])
+    urdf = open(res["urdf_path"]).read()
+    assert "<robot" in urdf and "a storage cabinet with two drawers" in urdf   # provenance
+    for path in res["mesh_paths"].values():
+        assert os.path.getsize(path) > 0
+    late = GeneratorClient(context=model_node["ctx"], namespace=model_node["ns"])
+    assert late.spin_until(lambda: late.descriptions and late.mesh_paths, 30)
+    assert late.descriptions[-1][1] == urdf
+    assert late.mesh_paths[-1]["id"] == res["id"]
+    assert late.mesh_paths[-1]["urdf_path"] == res["urdf_path"]
+    late.close()
+
+
+def test_image_request_is_answered_by_the_image_stage(model_node):
+    c = model_node["client"]
+    assert c.wait_ready(120)
+    rgb = (np.random.default_rng(0).random((96, 128, 3)) * 255).astype(np.uint8)
+    rid = c.send_image(rgb)
+    res = c.wait_result(rid, 180)
+    assert res is not None and res["status"] == "done", res
+    assert res["kind"] == "image" and res["prompt"] == "<image 128x96>"
+    assert "image_encoding" in res["timings"]["stages"]
+    assert os.path.isfile(res["urdf_path"])
+    assert c.spin_until(lambda: c.descriptions and
+                        c.descriptions[-1][1] == open(res["urdf_path"]).read(), 30)
