@@ -42,6 +42,8 @@ def test_folder_layout(exported):
         assert all(Path(p).is_file() and p.endswith(".obj") for p in res.mesh_paths.values())
         leftovers = [p for p in d.parent.iterdir() if p.name.startswith(".")]
         assert not leftovers, leftovers                         # atomic: no temp folders
+        for f in [d, *d.rglob("*")]:                            # readable by other users
+            assert f.stat().st_mode & 0o004, f
 
 
 def test_urdf_content(exported, objects):

@@ -14,6 +14,7 @@ image bit for bit.
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass, replace
 from typing import Optional, Sequence
 
@@ -233,4 +234,5 @@ def write_preview(obj, path, *, ratios: Sequence[float] = (0.0, 0.5, 1.0), size:
     buf = io.BytesIO()
     Image.fromarray(strip).save(buf, format="PNG")
     atomic_write_bytes(path, buf.getvalue())
+    os.chmod(path, 0o644)      # the atomic temp file is created 0600
     return str(path)

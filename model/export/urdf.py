@@ -174,6 +174,7 @@ def export_object(obj: ArticulatedObject, out_dir: os.PathLike, *, mesh_format: 
     out_dir.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(dir=out_dir.parent, prefix=f".{out_dir.name}.tmp-"))
     try:
+        os.chmod(tmp, 0o755)   # mkdtemp makes 0700; ROS consumers may run as another user
         (tmp / "meshes").mkdir()
         uri_base = _uri_base(mesh_uri, out_dir)
         robot, mesh_files = _build_robot(obj, robot_name, tmp, uri_base, mesh_format, density,
