@@ -279,3 +279,15 @@ def test_request_client_reports_errors_with_its_exit_code(node_factory, ros_cont
     none = subprocess.run(base[:-1] + ["3", "--text", "x"] + ros, capture_output=True,
                           text=True, env=env, timeout=60)
     assert none.returncode == 3 and "no ready generator" in none.stderr
+
+
+def test_demo_command_starts_a_node_requests_and_stops_it(tmp_path, ros_context):
+    env = {**os.environ, "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
+    out = subprocess.run([sys.executable, "-m", "artformer_ros.demo", "a bottle", "--backend",
+                          "example", "--output-dir", str(tmp_path / "demo"), "--timeout", "60"],
+                         capture_output=True, text=True, env=env, timeout=120)
+    assert out.returncode == 0, out.stdout + out.stderr
+    lines = dict(line.split(":", 1) for line in out.stdout.splitlines() if ":" in line)
+    urdf = lines["URDF"].strip()
+    assert urdf.startswith(str(tmp_path / "demo" / "objects")) and os.path.isfile(urdf)
+    assert "exit code 0" in out.stdout
