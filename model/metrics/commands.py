@@ -61,12 +61,15 @@ def _eval_parser() -> argparse.ArgumentParser:
 
 
 def _default_data() -> str | None:
-    """The dataset the pipeline trains on by default, if the data package names one."""
-    try:
-        from model.data import paths  # type: ignore
-        return str(paths.default_prepared())
-    except Exception:
+    """The newest prepared dataset under ./data/prepared or the repository's data/prepared
+    (where `artformer data prepare` writes by default)."""
+    roots = [Path.cwd() / "data" / "prepared",
+             Path(__file__).resolve().parents[2] / "data" / "prepared"]
+    found = [m.parent for r in roots if r.is_dir() for m in r.glob("*/manifest.json")]
+    found += [r for r in roots if (r / "manifest.json").exists()]
+    if not found:
         return None
+    return str(max(found, key=lambda p: (p / "manifest.json").stat().st_mtime))
 
 
 def eval_main(argv: list[str]) -> int:
