@@ -51,6 +51,7 @@ def test_eval_tiny_checkpoint_with_ablation(prepared, tiny_checkpoints, tmp_path
     res = json.loads((out / "results.json").read_text())
     rows = {r["name"]: r for r in res["rows"]}
     assert list(rows) == ["model", "no_tpe", "retrieval", "train (floor)", "test (GT)"]
+    assert "part retrieval" in res["skipped_rows"][0]      # random priors have no bank
     for name in ("model", "no_tpe"):
         r = rows[name]
         assert r["n_prompts"] == res["n_test"] + res["n_freeform"] == 6

@@ -46,6 +46,8 @@ def _eval_parser() -> argparse.ArgumentParser:
     p.add_argument("--baselines-only", action="store_true",
                    help="skip generation with --checkpoint; score retrieval / floor / GT only")
     p.add_argument("--no-retrieval", action="store_true")
+    p.add_argument("--no-part-retrieval", action="store_true",
+                   help="skip the 'model (part retrieval)' row (paper: Ours-PR)")
     p.add_argument("--no-floor", action="store_true")
     p.add_argument("--no-validity", action="store_true")
     p.add_argument("--no-plots", action="store_true")
@@ -97,7 +99,8 @@ def eval_main(argv: list[str]) -> int:
             kw[name] = v
     cfg = EvalConfig(data=data, out=args.out, checkpoint=args.checkpoint, split=args.split,
                      freeform_file=args.freeform_file, seed=args.seed, ablations=ablations,
-                     model=not args.baselines_only, retrieval=not args.no_retrieval, train_floor=not args.no_floor,
+                     model=not args.baselines_only, retrieval=not args.no_retrieval,
+                     part_retrieval=not args.no_part_retrieval, train_floor=not args.no_floor,
                      validity=not args.no_validity, workers=args.workers,
                      plots=not args.no_plots, progress=True, **kw)
     results = run_eval(cfg)

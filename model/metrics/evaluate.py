@@ -59,6 +59,7 @@ class EvalConfig:
     diversity_samples: int = 4
     ablations: dict = field(default_factory=dict)   # name -> checkpoint folder
     model: bool = True                          # False: score the baselines only
+    part_retrieval: bool = True                 # the "Ours-PR" row (geometry = retrieve)
     retrieval: bool = True
     train_floor: bool = True
     validity: bool = True
@@ -101,10 +102,14 @@ def _export(obj: ArticulatedObject, folder: Path, collision: str = "hull") -> Op
 
 
 def generate_method(name: str, checkpoint: Optional[str], prompts: list[str], cfg: EvalConfig,
-                    out_dir: Path, loader: Optional[Callable] = None) -> MethodOutput:
-    """Run the generator on every prompt (seed = cfg.seed + i), export each result."""
+                    out_dir: Path, loader: Optional[Callable] = None,
+                    geometry: str = "generate") -> Optional[MethodOutput]:
+    """Run the generator on every prompt (seed = cfg.seed + i), export each result.
+
+    ``geometry="retrieve"`` is the paper's "Ours-PR" row (each part's latent replaced by the
+    nearest training latent); None when the checkpoint has no retrieval bank."""
     from model.pipeline.api import GenerationConfig
-    gcfg = GenerationConfig(checkpoint=checkpoint)
+    gcfg = GenerationConfig(checkpoint=checkpoint, geometry=geometry)
     if cfg.steps is not None:
         gcfg.steps = cfg.steps
     if cfg.resolution is not None:
@@ -113,6 +118,11 @@ def generate_method(name: str, checkpoint: Optional[str], prompts: list[str], cf
         from model.pipeline import Generator
         loader = Generator.load
     gen = loader(gcfg)
+    if geometry == "retrieve":
+        bank = getattr(getattr(gen, "shape", None), "bank", None) or {}
+        if bank.get("latents") is None:
+            log.warning("%s: the checkpoint's prior has no retrieval bank; row skipped", name)
+            return None
     res = MethodOutput(name, [], [], list(prompts))
     it = list(enumerate(prompts))
     if cfg.progress:
@@ -281,8 +291,16 @@ def run_eval(cfg: EvalConfig, loader: Optional[Callable] = None) -> dict:
 
     methods: list[MethodOutput] = []
     ckpt = None if cfg.checkpoint in (None, "", "shipped") else cfg.checkpoint
+    skipped = []
     if cfg.model:
         methods.append(generate_method("model", ckpt, prompts, cfg, out / "objects", loader))
+        if cfg.part_retrieval:
+            pr = generate_method("model (part retrieval)", ckpt, prompts, cfg, out / "objects",
+                                 loader, geometry="retrieve")
+            if pr is None:
+                skipped.append("model (part retrieval): no retrieval bank in the prior checkpoint")
+            else:
+                methods.append(pr)
     for name, path in cfg.ablations.items():
         methods.append(generate_method(name, path, prompts, cfg, out / "objects", loader))
     if cfg.retrieval:
@@ -314,7 +332,8 @@ def run_eval(cfg: EvalConfig, loader: Optional[Callable] = None) -> dict:
 
     results = {"config": asdict(cfg), "n_test": n_test, "n_freeform": len(free),
                "test_ids": test_ids, "prompts": prompts, "rows": rows,
-               "published": PUBLISHED, "seconds": time.perf_counter() - t_start,
+               "published": PUBLISHED, "skipped_rows": skipped,
+               "seconds": time.perf_counter() - t_start,
                "id_points": cfg.points, "id_poses": cfg.poses}
     from model.data.format import atomic_write_json
     atomic_write_json(out / "results.json", _jsonable(results))

@@ -34,6 +34,8 @@ def results_markdown(results: dict) -> str:
         lines.append("| " + " | ".join([
             f"*{name}*", _f(p.get("por"), 100, 3), "–", _f(p.get("mmd")), _f(p.get("cov"), 1, 4),
             _f(p.get("nna"), 1, 4), "–", "–", "–", "–", "–"]) + " |")
+    for sk in results.get("skipped_rows", []):
+        lines.append(f"\nSkipped: {sk}.")
     lines.append("")
     lines.append("Published anchors are on PartNet-Mobility with the authors' scale "
                  "normalisation; ours are on the procedural dataset in metres — compare "
