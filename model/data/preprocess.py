@@ -11,7 +11,7 @@ data).
 
 Watertightness: meshes that are already closed 2-manifolds (all procedural parts) are used as
 they are; any other mesh (real PartNet-Mobility shells: thin, open, many pieces) becomes the
-surface of its one-voxel shell: unsigned distance on a grid, marching cubes at |d| = one voxel.
+surface of its one-voxel shell: unsigned distance on a grid, marching cubes at |d| = 0.87 voxel.
 
     prepare_dataset(PrepareConfig(src="data/synth/v1", out="data/prepared/v1", workers=2))
 """
@@ -85,11 +85,13 @@ def make_watertight(mesh, resolution: int = 96):
     axes = [lo[i] + voxel * np.arange(dims[i]) for i in range(3)]
     G = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 3)   # (N, 3)
     d, _, _, _ = igl.signed_distance(G, V, F, sign_type=igl.SignedDistanceType.SIGNED_DISTANCE_TYPE_UNSIGNED)
-    vol = np.abs(d).reshape(tuple(dims)) - voxel                            # (X, Y, Z) neg. inside shell
-    verts, faces, _, _ = measure.marching_cubes(vol, level=0.0, spacing=(voxel, voxel, voxel))
-    out = trimesh.Trimesh(vertices=verts + lo, faces=faces[:, ::-1], process=True)
-    # marching cubes faces point towards increasing values (outwards of the negative shell) with
-    # reversed order; fix_normals settles any remaining inconsistency
+    # Half-thickness just under one voxel and off the grid spacing: axis-aligned sheets would
+    # otherwise put exact zeros on grid nodes, which makes marching cubes non-manifold.
+    half = voxel * 0.87
+    vol = np.abs(d).reshape(tuple(dims)) - half                             # (X, Y, Z) neg. inside shell
+    verts, faces, _, _ = measure.marching_cubes(vol, level=0.0, spacing=(voxel, voxel, voxel),
+                                                gradient_direction="ascent")
+    out = trimesh.Trimesh(vertices=verts + lo, faces=faces, process=True)
     trimesh.repair.fix_normals(out)
     return out
 

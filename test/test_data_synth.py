@@ -1,0 +1,103 @@
+"""Procedural generator: collision-free motion, attachment, determinism, variety."""
+import numpy as np
+import pytest
+
+from model.core import JointType, meshops
+from model.data import synth
+
+# A sample across all six categories (fixed seeds; index picks the object).
+SAMPLE = [(cat, i) for cat in synth.GENERATORS for i in (0, 1)]
+
+
+@pytest.fixture(scope="module")
+def sample_objects():
+    return {(c, i): synth.generate_object(seed=3, index=i, category=c) for c, i in SAMPLE}
+
+
+@pytest.mark.parametrize("cat,i", SAMPLE)
+def test_no_interpenetration_over_10_states(sample_objects, cat, i):
+    obj = sample_objects[(cat, i)]
+    assert obj.category == cat and obj.movable_parts(), "every object has a moving part"
+    vols = {p.name: meshops.volume(p.mesh) for p in obj.parts}
+    for r in np.linspace(0.0, 1.0, 10):
+        posed = obj.posed_meshes(ratio=float(r))
+        names = list(posed)
+        M = meshops.pairwise_intersection_volumes([posed[n] for n in names])
+        for a in range(len(names)):
+            for b in range(a + 1, len(names)):
+                tol = max(2e-9, 1e-4 * min(vols[names[a]], vols[names[b]]))
+                assert M[a, b] <= tol, f"{obj.name}: {names[a]} ∩ {names[b]} = {M[a, b]:.3g} m³ at r={r:.2f}"
+
+
+@pytest.mark.parametrize("cat,i", SAMPLE)
+def test_parts_closed_attached_and_framed(sample_objects, cat, i):
+    obj = sample_objects[(cat, i)]
+    for p in obj.parts:
+        assert p.mesh.is_watertight and meshops.volume(p.mesh) > 0, p.name
+    rep = synth.check_object(obj)
+    assert rep.ok, rep
+    lo = np.min([p.mesh.bounds[0] for p in obj.parts], axis=0)
+    assert abs(lo[2]) < 1e-6, "base on z = 0"
+    for p in obj.parts:  # every range starts closed at 0 and opens to a positive value
+        j = p.joint
+        if j.type.translates:
+            assert j.t_range[0] == 0.0 and j.t_range[1] > 0
+        if j.type.rotates:
+            turns = 3 if j.type == JointType.SCREW else 1          # caps unscrew over several turns
+            assert j.r_range[0] == 0.0 and 0 < j.r_range[1] <= turns * 2 * np.pi + 1e-9
+
+
+def test_check_object_detects_collision_and_detachment():
+    obj = synth.generate_object(seed=0, index=0, category="StorageFurniture")
+    bad = obj.copy()
+    k = bad.movable_parts()[0]
+    j = bad.parts[k].joint
+    if j.type == JointType.PRISMATIC:
+        j.axis = -j.axis                       # drawers now slide into the back wall
+    else:
+        j.axis = -j.axis                       # doors now swing into the carcass
+    assert not synth.check_object(bad).ok
+    far = obj.copy()
+    k = far.movable_parts()[0]
+    far.parts[k].joint.origin = far.parts[k].joint.origin + np.array([0.0, 0.0, 5.0])
+    if far.parts[k].joint.type.translates:
+        far.parts[k].mesh.apply_translation([0.0, 0.0, 5.0])
+    assert synth.check_object(far).detached
+
+
+def test_deterministic_and_distinct():
+    a = synth.generate_object(seed=7, index=4)
+    b = synth.generate_object(seed=7, index=4)
+    c = synth.generate_object(seed=7, index=5)
+    ta, tb = a.tokens(), b.tokens()
+    assert np.array_equal(ta[0], tb[0]) and ta[3] == tb[3] and a.category == b.category
+    for pa, pb in zip(a.parts, b.parts):
+        assert np.array_equal(pa.mesh.vertices, pb.mesh.vertices)
+    assert a.tokens()[0].shape != c.tokens()[0].shape or not np.allclose(a.tokens()[0], c.tokens()[0])
+
+
+def test_variety_of_layouts_and_counts():
+    objs = [synth.generate_object(seed=1, index=i, category="StorageFurniture") for i in range(24)]
+    moving = [len(o.movable_parts()) for o in objs]
+    assert min(moving) >= 1 and max(moving) >= 8
+    sigs = {tuple(sorted(o.summary()["counts"].items())) for o in objs}
+    assert len(sigs) >= 10, "layouts should differ"
+    sides = {m.get("side") for o in objs for m in o.metadata["parts"].values()} - {None}
+    assert {"left", "right"} <= sides
+    styles = {m.get("style") for o in objs for m in o.metadata["parts"].values()} - {None}
+    assert len(styles & set(synth.HANDLE_STYLES)) >= 3
+    # ≥ 12 moving parts occur (safes with keypads, big drawer grids)
+    big = [synth.generate_object(seed=0, index=i, category="Safe") for i in range(40)]
+    assert max(max(moving), max(len(o.movable_parts()) for o in big)) >= 12
+
+
+def test_category_specific_joints():
+    bottles = [synth.generate_object(seed=2, index=i, category="Bottle") for i in range(8)]
+    kinds = {o.parts[o.movable_parts()[0]].joint.type for o in bottles}
+    assert JointType.SCREW in kinds and JointType.REVOLUTE in kinds
+    usbs = [synth.generate_object(seed=2, index=i, category="USB") for i in range(8)]
+    kinds = {o.parts[o.movable_parts()[0]].joint.type for o in usbs}
+    assert kinds == {JointType.REVOLUTE, JointType.PRISMATIC}
+    oven = synth.generate_object(seed=2, index=0, category="Oven")
+    labels = oven.summary()["counts"]
+    assert labels.get("door") == 1 and labels.get("knob", 0) >= 2
