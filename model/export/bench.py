@@ -83,8 +83,30 @@ def main(argv: list[str] | None = None) -> int:
         print(f"  preview.png (3 × 320², 2× supersampled): {sec:.3f} s")
         sec, _ = _timed(lambda: render_views(obj, (0.5,), 224, seed=1), args.repeats)
         print(f"  render_views 1 × 224² (seeded options, 2× supersampled): {sec:.3f} s")
+        if name == "bottle":
+            _helper_mass_probe(res.urdf_path, obj)
     print(f"output: {out}")
     return 0
+
+
+def _helper_mass_probe(urdf_path: str, obj) -> None:
+    """Does each simulator accept a screw helper link of mass 0 (vs our 1e-6 kg)?"""
+    from lxml import etree
+
+    from .simcheck import check_urdf
+    tree = etree.parse(urdf_path)
+    for link in tree.getroot().findall("link"):
+        if link.get("name").endswith("_screw_helper"):
+            link.find("inertial/mass").set("value", "0")
+            for k in ("ixx", "iyy", "izz"):
+                link.find("inertial/inertia").set(k, "0")
+    probe = Path(urdf_path).with_name("helper_mass0.urdf")
+    tree.write(str(probe))
+    rep = check_urdf(probe, obj)
+    probe.unlink()
+    for sim, r in rep.sims.items():
+        print(f"  screw helper with mass 0 in {sim}: "
+              f"{'accepted' if r.ok else 'refused: ' + r.error.splitlines()[0]}")
 
 
 if __name__ == "__main__":
