@@ -45,8 +45,9 @@ def test_eval_tiny_checkpoint_with_ablation(prepared, tiny_checkpoints, tmp_path
     from model.metrics.commands import main
     full, no_tpe = tiny_checkpoints
     out = tmp_path / "eval"
+    # the ablation is given as a bare transformer file: sdf / prior come from --checkpoint
     rc = main(["eval", "--checkpoint", str(full), "--data", str(prepared), "--preset", "tiny",
-               "--ablation", f"no_tpe={no_tpe}", "--out", str(out)])
+               "--ablation", f"no_tpe={no_tpe / 'transformer.pt'}", "--out", str(out)])
     assert rc == 0
     res = json.loads((out / "results.json").read_text())
     rows = {r["name"]: r for r in res["rows"]}

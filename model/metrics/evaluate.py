@@ -161,6 +161,47 @@ def generate_method(name: str, checkpoint: Optional[str], prompts: list[str], cf
     return res
 
 
+def _slug(text: str) -> str:
+    return "".join(c if c.isalnum() else "_" for c in text).strip("_") or "row"
+
+
+def assemble_checkpoint(path: str, base: Optional[str], folder: Path) -> str:
+    """A checkpoint folder the Generator can load for an ablation given as a transformer file
+    (or a folder with only some stages): missing stages are linked from ``base`` (the
+    checkpoint under test; None = the shipped weights)."""
+    from model.pipeline.generator import STAGES, WEIGHTS_DIR
+    p = Path(path)
+    have: dict[str, Path] = {}
+    if p.is_file():
+        have["transformer"] = p
+    elif p.is_dir():
+        for stage in STAGES:
+            exact = p / f"{stage}.pt"
+            cands = [exact] if exact.exists() else sorted(p.glob(f"{stage}_*.pt"))
+            if cands:
+                have[stage] = cands[0]
+    else:
+        raise FileNotFoundError(f"ablation checkpoint {path} does not exist")
+    if all(s in have for s in STAGES[:3]):
+        return str(p)
+    if "transformer" not in have:
+        raise FileNotFoundError(f"{path} holds no transformer checkpoint")
+    src = Path(base) if base else WEIGHTS_DIR
+    folder.mkdir(parents=True, exist_ok=True)
+    for stage in STAGES:
+        f = have.get(stage)
+        if f is None:
+            exact = src / f"{stage}.pt"
+            cands = [exact] if exact.exists() else sorted(src.glob(f"{stage}_*.pt"))
+            f = cands[0] if cands else None
+        link = folder / f"{stage}.pt"
+        if link.is_symlink() or link.exists():
+            link.unlink()
+        if f is not None:
+            link.symlink_to(Path(f).resolve())
+    return str(folder)
+
+
 # --------------------------------------------------------------------------------------------
 # scoring
 # --------------------------------------------------------------------------------------------
@@ -302,6 +343,7 @@ def run_eval(cfg: EvalConfig, loader: Optional[Callable] = None) -> dict:
             else:
                 methods.append(pr)
     for name, path in cfg.ablations.items():
+        path = assemble_checkpoint(path, ckpt, out / "checkpoints" / _slug(name))
         methods.append(generate_method(name, path, prompts, cfg, out / "objects", loader))
     if cfg.retrieval:
         retr = Retriever(data, "train", cfg.text_encoder)
