@@ -262,6 +262,8 @@ def score_method(out: MethodOutput, refs: list, D_rr: Optional[np.ndarray], clou
                 continue
             if o is None:
                 r = al.check_alignment(al.parse_prompt(prompt), al.GeneratedStructure(None, {}, {}))
+                r.aligned = False                    # a failed generation never aligns
+                r.failures.append("generation failed")
             else:
                 r = al.alignment_of(prompt, o)
             results.append(r)
