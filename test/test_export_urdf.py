@@ -282,3 +282,27 @@ def test_object_without_meshes_exports_and_loads(objects, tmp_path):
     assert res.mesh_paths == {}
     rep = check_urdf(res.urdf_path, obj)
     assert rep.ok, rep.summary()
+
+
+@pytest.mark.parametrize("kind", ["flat_quad", "one_triangle", "open_box"])
+def test_degenerate_part_meshes_still_load_everywhere(objects, tmp_path, kind):
+    """Generated geometry can be flat or open: collision becomes a thin box, MuJoCo (which
+    rejects flat visual meshes) gets collision geometry only, the others keep the visuals."""
+    import trimesh
+    box = trimesh.creation.box(extents=(0.1, 0.2, 0.05),
+                               transform=trimesh.transformations.translation_matrix((0.2, 0, 0.5)))
+    mesh = {"flat_quad": trimesh.Trimesh([[0.2, 0, 0.5], [0.2, 0.1, 0.5], [0.2, 0.1, 0.6],
+                                          [0.2, 0, 0.6]], [[0, 1, 2], [0, 2, 3]]),
+            "one_triangle": trimesh.Trimesh([[0.2, 0, 0.5], [0.2, 0.1, 0.5], [0.2, 0.1, 0.6]],
+                                            [[0, 1, 2]]),
+            "open_box": trimesh.Trimesh(box.vertices, box.faces[:-2])}[kind]
+    obj = objects["cabinet"].copy()
+    obj.parts[obj.index_of("drawer_0")].mesh = mesh
+    res = export_object(obj, tmp_path / kind, preview=False)
+    rep = check_urdf(res.urdf_path, obj)
+    assert rep.ok, rep.summary()
+    meta = json.loads(Path(res.metadata_path).read_text())
+    flat = kind != "open_box"
+    assert meta["mujoco_visuals_discarded_for"] == (["drawer_0"] if flat else [])
+    comp = _xml(res.urdf_path).find("mujoco/compiler")
+    assert comp.get("discardvisual") == ("true" if flat else "false")

@@ -57,8 +57,12 @@ def collision_pieces(mesh, cfg: CollisionConfig | None = None, obstacles=()) -> 
         return []
     try:
         hull = mesh.convex_hull
-    except Exception:  # qhull fails on flat input: the mesh itself is the best we have
-        return [mesh]
+    except Exception:  # qhull fails on flat / collinear input
+        hull = None
+    if hull is None or len(hull.vertices) < 4 or not hull.volume > 1e-12:
+        # Flat or degenerate geometry: simulators need a 3-D convex piece (MuJoCo's qhull
+        # rejects planar meshes), so use its bounding box thickened to 2 mm.
+        return [thin_box(mesh)]
     method = cfg.method
     watertight = mesh.is_watertight and mesh.volume > 1e-12
     if method == "auto":
@@ -80,6 +84,27 @@ def collision_pieces(mesh, cfg: CollisionConfig | None = None, obstacles=()) -> 
     if method == "cells":
         return cells_decompose(mesh, cfg)
     return vhacd_decompose(mesh, cfg) or [hull]
+
+
+def thin_box(mesh, min_thickness: float = 0.002):
+    """Axis-aligned box around ``mesh`` with every side at least ``min_thickness``."""
+    import trimesh
+    lo, hi = np.asarray(mesh.bounds, dtype=np.float64)
+    ext = np.maximum(hi - lo, min_thickness)
+    T = np.eye(4)
+    T[:3, 3] = (lo + hi) / 2.0
+    return trimesh.creation.box(extents=ext, transform=T)
+
+
+def is_solid_enough(mesh) -> bool:
+    """Can MuJoCo compile this mesh? It needs >= 4 vertices spanning a volume (measured
+    errors otherwise: "at least 4 vertices required", "mesh volume is too small", qhull)."""
+    if mesh is None or len(mesh.vertices) < 4:
+        return False
+    try:
+        return bool(mesh.convex_hull.volume > 1e-12)
+    except Exception:
+        return False
 
 
 def _overlaps(piece, obstacles, tol: float = 1e-9) -> bool:

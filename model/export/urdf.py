@@ -31,7 +31,8 @@ import numpy as np
 
 from model.core.objects import ArticulatedObject, JointType, ObjectValidationError, Part
 
-from .collision import CollisionConfig, collision_pieces  # noqa: F401  (re-exported)
+from .collision import (CollisionConfig, collision_pieces,  # noqa: F401  (re-exported)
+                        is_solid_enough)
 
 log = logging.getLogger(__name__)
 
@@ -180,9 +181,16 @@ def export_object(obj: ArticulatedObject, out_dir: os.PathLike, *, mesh_format: 
         robot, mesh_files = _build_robot(obj, robot_name, tmp, uri_base, mesh_format, density,
                                          collision)
         urdf_name = f"{robot_name}.urdf"
-        xml = _robot_xml(robot, prov)
+        # MuJoCo compiles visual meshes too and rejects flat ones; then it gets collision
+        # geometry only (ROS consumers still see every visual).
+        flat = sorted(p.name for p in obj.parts
+                      if p.mesh is not None and len(p.mesh.faces) and not is_solid_enough(p.mesh))
+        if flat:
+            log.warning("flat visual meshes %s: MuJoCo will load collision geometry only", flat)
+        xml = _robot_xml(robot, prov, discard_visual=bool(flat))
         (tmp / urdf_name).write_text(xml)
         meta = _metadata(obj, robot_name, urdf_name, mesh_format, mesh_files, prov)
+        meta["mujoco_visuals_discarded_for"] = flat
         (tmp / "metadata.json").write_text(json.dumps(meta, indent=1))
         if preview:
             from .render import write_preview
@@ -319,7 +327,7 @@ def _build_robot(obj, robot_name, tmp, uri_base, fmt, density, collision):
     return robot, mesh_files
 
 
-def _robot_xml(robot, provenance: dict) -> str:
+def _robot_xml(robot, provenance: dict, discard_visual: bool = False) -> str:
     """Serialise with lxml (yourdfpy's write_xml_string is broken), add the provenance
     comment and MuJoCo's compiler hints (mesh folder, keep visuals, keep every link)."""
     import yourdfpy as y
@@ -333,7 +341,8 @@ def _robot_xml(robot, provenance: dict) -> str:
     root.insert(0, etree.Comment(_comment_safe(text)))
     mj = etree.SubElement(root, "mujoco")
     etree.SubElement(mj, "compiler", attrib={
-        "meshdir": "meshes", "strippath": "true", "discardvisual": "false",
+        "meshdir": "meshes", "strippath": "true",
+        "discardvisual": "true" if discard_visual else "false",
         "fusestatic": "false", "balanceinertia": "true"})
     etree.indent(tree, space="  ")
     return etree.tostring(tree, encoding="unicode", xml_declaration=False) + "\n"
