@@ -237,7 +237,9 @@ def test_missing_mesh_is_named(bottle_urdf):
     with pytest.raises(URDFImportError, match=r"mesh file not found: .*cap\.obj"):
         import_urdf(bottle_urdf)
     rep = check_urdf(bottle_urdf)
-    assert not rep.ok and "cap" in rep.sims["mujoco"].error
+    assert not rep.ok
+    for sim in ("yourdfpy", "pybullet", "mujoco"):
+        assert "cap.obj" in rep.sims[sim].error, (sim, rep.sims[sim].error)
 
 
 def test_unknown_joint_type(bottle_urdf):

@@ -16,9 +16,11 @@ visual meshes an engine cannot read (GLB) are left out of its copy (noted in the
 """
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 import os
+import sys
 import tempfile
 import time
 from dataclasses import asdict, dataclass, field
@@ -200,6 +202,15 @@ def _backend_yourdfpy(path: Path):
     with warnings.catch_warnings():  # yourdfpy 0.0.58 float()s 1-element arrays
         warnings.simplefilter("ignore", DeprecationWarning)
         urdf = yourdfpy.URDF.load(str(path), build_scene_graph=True, load_meshes=False)
+    # yourdfpy only warns about meshes it cannot find; a consumer would get no geometry.
+    from .importer import resolve_mesh_path
+    missing = sorted({g.geometry.mesh.filename for link in urdf.robot.links
+                      for g in [*link.visuals, *link.collisions]
+                      if g.geometry is not None and g.geometry.mesh is not None
+                      and not resolve_mesh_path(g.geometry.mesh.filename, path.parent).exists()})
+    if missing:
+        raise RuntimeError(f"mesh files not found: {missing[:5]}"
+                           f"{' and %d more' % (len(missing) - 5) if len(missing) > 5 else ''}")
     movable = {n: (j.limit.lower if j.limit is not None else None,
                    j.limit.upper if j.limit is not None else None)
                for n, j in urdf.joint_map.items() if j.type != "fixed"}
@@ -216,14 +227,42 @@ def _backend_yourdfpy(path: Path):
     return set_values, movable, lambda: None
 
 
+@contextlib.contextmanager
+def _captured_native_output():
+    """Collect what C code writes to fds 1 and 2 (pybullet's b3Warning / b3Error lines) so it
+    goes into the report instead of the terminal. Held only around the load call."""
+    sys.stdout.flush()
+    sys.stderr.flush()
+    buf = tempfile.TemporaryFile(mode="w+b")
+    saved = [os.dup(1), os.dup(2)]
+    lines: list[str] = []
+    try:
+        os.dup2(buf.fileno(), 1)
+        os.dup2(buf.fileno(), 2)
+        yield lines
+    finally:
+        os.dup2(saved[0], 1)
+        os.dup2(saved[1], 2)
+        for fd in saved:
+            os.close(fd)
+        buf.seek(0)
+        text = buf.read().decode(errors="replace")
+        buf.close()
+        lines.extend(ln.strip() for ln in text.splitlines() if ln.strip())
+
+
 def _backend_pybullet(path: Path):
-    import pybullet as pb
+    with _captured_native_output():
+        import pybullet as pb                    # prints its build time on first import
     cid = pb.connect(pb.DIRECT)
     try:
-        body = pb.loadURDF(str(path), useFixedBase=True, physicsClientId=cid)
+        with _captured_native_output() as native:
+            body = pb.loadURDF(str(path), useFixedBase=True, physicsClientId=cid)
     except Exception as e:
         pb.disconnect(cid)
-        raise RuntimeError(f"pybullet could not load the URDF: {e}") from None
+        detail = " ".join(ln for ln in native if "rror" in ln or "cannot" in ln or "invalid" in ln)
+        raise RuntimeError(f"pybullet could not load the URDF: {e}"
+                           f"{' (' + detail[:300] + ')' if detail else ''}") from None
     n = pb.getNumJoints(body, physicsClientId=cid)
     index, movable, links = {}, {}, {}
     for k in range(n):
