@@ -47,6 +47,9 @@ class SimResult:
     seconds: float = 0.0
     error: str = ""
     note: str = ""                          # e.g. visuals left out for this simulator
+    # MuJoCo only, informational (does not affect ``ok``): deepest interpenetration of
+    # collision geometry of different bodies over every tested state, metres.
+    max_penetration: Optional[float] = None
 
     @property
     def ok(self) -> bool:
@@ -307,14 +310,20 @@ def _backend_mujoco(path: Path):
             lim = m.jnt_range[k] if m.jnt_limited[k] else (-math.pi, math.pi)
             movable[jname] = (float(lim[0]), float(lim[1]))
     bodies = {m.body(b).name: b for b in range(1, m.nbody)}
+    deepest = [0.0]
 
     def set_values(vals: dict) -> dict:
         d.qpos[:] = 0.0
         for jname, v in vals.items():
             d.qpos[adr[jname]] = v
-        mujoco.mj_kinematics(m, d)
+        # Position stage incl. collision detection: poses, and how deep collision geometry of
+        # different bodies interpenetrates in this state (informational).
+        mujoco.mj_fwdPosition(m, d)
+        if d.ncon:
+            deepest[0] = max(deepest[0], float(-d.contact.dist[:d.ncon].min()))
         return {name: _pose(d.xpos[b], d.xmat[b].reshape(3, 3)) for name, b in bodies.items()}
 
+    set_values.max_penetration = lambda: deepest[0]
     return set_values, movable, lambda: None
 
 
@@ -444,6 +453,9 @@ def check_urdf(path: os.PathLike, obj=None, *, simulators=SIMULATORS) -> SimRepo
                         p, r = _pose_errors(got, want)
                         dp, dr = max(dp, p), max(dr, r)
                     res.max_position_error, res.max_rotation_error = dp, dr
+                probe = getattr(set_values, "max_penetration", None)
+                if probe is not None:
+                    res.max_penetration = probe()
             except Exception as e:  # record and go on with the next simulator
                 res.error = f"{type(e).__name__}: {e}"
                 log.debug("simcheck %s failed on %s", sim, path, exc_info=True)
