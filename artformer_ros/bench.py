@@ -91,7 +91,7 @@ def run(backend: str, n: int, params: dict, timeout: float, log_path: Optional[s
 
     try:
         if not client.wait_ready(timeout):
-            raise RuntimeError(f"node not ready within {timeout} s: {client.status}")
+            raise RuntimeError(f"node not ready (waited up to {timeout:.0f} s): {client.status}")
         ready_s = time.monotonic() - t_start
         sample_memory()
         rows = []

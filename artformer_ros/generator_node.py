@@ -139,7 +139,6 @@ class GeneratorNode(Node):
             req = parse_text_request(payload, max_length=self.settings.max_text_length,
                                      assigned_id=rid)
         except RequestError as err:
-            self.get_logger().warning(f"text request {err.request_id} refused: {err}")
             self._emit(answer(err.request_id, "error", str(err)), None)
             return
         except ValueError as err:
@@ -155,7 +154,6 @@ class GeneratorNode(Node):
         try:
             rgb = image_to_rgb(msg, max_pixels=self.settings.max_image_pixels)
         except ValueError as err:
-            self.get_logger().warning(f"image request {rid} refused: {err}")
             self._emit(answer(rid, "error", f"bad image: {err}", kind="image"), None)
             return
         self.get_logger().info(f"image request {rid}: {rgb.shape[1]}x{rgb.shape[0]} "
@@ -178,19 +176,20 @@ class GeneratorNode(Node):
         if result.get("status") == "done":
             self.get_logger().info(f"request {result['id']} done in "
                                    f"{result['timings']['total']:.2f} s: {result['urdf_path']}")
-        elif urdf_xml is None and result.get("status") != "error":
-            self.get_logger().info(f"request {result.get('id')}: {result.get('message')}")
+        else:
+            self.get_logger().warning(f"request {result.get('id')} {result.get('status')}: "
+                                      f"{result.get('message')}")
 
-    def flush(self, timeout: float = 2.0) -> None:
-        """Wait (bounded) until reliable subscribers acknowledged what was published, so the
-        last answers are not lost when the process ends right after."""
+    def flush(self, timeout: float = 1.0) -> None:
+        """Wait (bounded) until reliable subscribers acknowledged the answers, so the last
+        ones (e.g. the shutdown rejections) are not lost when the process ends right after.
+        A subscriber that vanished without discovery noticing yet costs the full timeout."""
         from rclpy.duration import Duration
 
-        for pub in (self._pub_result, self._pub_status, self._pub_description):
-            try:
-                pub.wait_for_all_acked(Duration(seconds=timeout))
-            except Exception as err:   # best effort only
-                self.get_logger().debug(f"flush: {err}")
+        try:
+            self._pub_result.wait_for_all_acked(Duration(seconds=timeout))
+        except Exception as err:   # best effort only
+            self.get_logger().debug(f"flush: {err}")
 
     def _publish_status(self, state: str, message: str) -> None:
         with self._pub_lock:
@@ -213,6 +212,10 @@ def main(argv: Optional[list[str]] = None) -> int:
         logging.getLogger("artformer_ros").error(f"invalid parameter: {err}")
         rclpy.try_shutdown()
         return 2
+    except OSError as err:   # e.g. output_dir cannot be created
+        logging.getLogger("artformer_ros").error(f"cannot start: {err}")
+        rclpy.try_shutdown()
+        return 1
     executor = SingleThreadedExecutor()
     executor.add_node(node)
     try:

@@ -260,6 +260,13 @@ def test_invalid_start_parameters_exit_with_a_reason(tmp_path):
                          capture_output=True, text=True, timeout=60)
     assert out.returncode == 2
     assert "queue_size" in out.stderr and "Traceback" not in out.stderr
+    blocker = tmp_path / "a_file"
+    blocker.write_text("")
+    out = subprocess.run([sys.executable, "-m", "artformer_ros.generator_node", "--ros-args",
+                          "-p", "backend:=example", "-p", f"output_dir:={blocker}/out"],
+                         capture_output=True, text=True, timeout=60)
+    assert out.returncode == 1
+    assert "cannot start" in out.stderr and "Traceback" not in out.stderr
 
 
 def test_request_client_reports_errors_with_its_exit_code(node_factory, ros_context):
