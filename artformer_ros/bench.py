@@ -94,6 +94,7 @@ def run(backend: str, n: int, params: dict, timeout: float, log_path: Optional[s
             raise RuntimeError(f"node not ready (waited up to {timeout:.0f} s): {client.status}")
         ready_s = time.monotonic() - t_start
         sample_memory()
+        ready_rss_mb = rss[-1] / 1024.0
         rows = []
         for i in range(n + 1):   # request 0 is the warm-up
             prompt = PROMPTS[i % len(PROMPTS)]
@@ -108,7 +109,8 @@ def run(backend: str, n: int, params: dict, timeout: float, log_path: Optional[s
             if not wait(lambda: len(client.descriptions) > n_desc, 10):
                 raise RuntimeError(f"request {i}: no URDF on robot_description")
             t_urdf = client.descriptions[n_desc][0]
-            rows.append({"i": i, "prompt": prompt, "warmup": i == 0,
+            sample_memory()
+            rows.append({"i": i, "prompt": prompt, "warmup": i == 0, "rss_mb": rss[-1] / 1024.0,
                          "urdf_latency_s": t_urdf - t0, "result_latency_s": res["_received"] - t0,
                          "node_timings": res["timings"],
                          "parts": len(res["mesh_paths"])})
@@ -136,6 +138,9 @@ def run(backend: str, n: int, params: dict, timeout: float, log_path: Optional[s
         "node_generate_s": {"median": statistics.median(gen), "p95": percentile(gen, 95)},
         "node_export_s": {"median": statistics.median(exp), "p95": percentile(exp, 95)},
         "parts": {"median": statistics.median(r["parts"] for r in timed)},
+        "ready_rss_mb": ready_rss_mb,
+        "rss_after_first_timed_mb": timed[0]["rss_mb"],
+        "rss_after_last_timed_mb": timed[-1]["rss_mb"],
         "peak_rss_mb": mem["VmHWM"] / 1024.0,
         "max_sampled_rss_mb": max(rss) / 1024.0 if rss else None,
         "final_rss_mb": mem["VmRSS"] / 1024.0,
@@ -179,7 +184,10 @@ def main(argv: Optional[list[str]] = None) -> int:
     print(f"inside the node: generate median {report['node_generate_s']['median']:.3f} s, "
           f"export median {report['node_export_s']['median']:.3f} s, "
           f"{report['parts']['median']:.0f} parts (median)")
-    print(f"node peak RSS {report['peak_rss_mb']:.0f} MB (final {report['final_rss_mb']:.0f} MB)")
+    print(f"node RSS: {report['ready_rss_mb']:.0f} MB when ready, "
+          f"{report['rss_after_first_timed_mb']:.0f} MB after the first timed request, "
+          f"{report['rss_after_last_timed_mb']:.0f} MB after the last; "
+          f"peak {report['peak_rss_mb']:.0f} MB (VmHWM)")
     print(f"saved {args.out}")
     return 0
 

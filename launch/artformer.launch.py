@@ -1,7 +1,10 @@
 """Start the artformer generator node with the package's parameter file.
 
     ros2 launch artformer_ros artformer.launch.py [params_file:=my.yaml]
-        [backend:=example] [namespace:=artformer] [output_dir:=/tmp/artformer]
+        [namespace:=artformer] [remap_description:=/robot_description]
+
+Every node parameter (backend, output_dir, resolution...) comes from the params file; copy
+share/artformer_ros/config/artformer.yaml, edit it and pass it as params_file.
 
 Needs a full ROS 2 install (the `launch` and `launch_ros` packages); topics are relative, so
 `namespace` moves all of them, and robot_description can be remapped with `remap_description`.
@@ -21,10 +24,6 @@ def generate_launch_description():
     args = [
         DeclareLaunchArgument("params_file", default_value=default_params,
                               description="YAML file with the node's parameters"),
-        DeclareLaunchArgument("backend", default_value="model",
-                              description="model (the pipeline) or example (no model)"),
-        DeclareLaunchArgument("output_dir", default_value="~/.ros/artformer_ros/output",
-                              description="where the generated URDF folders go"),
         DeclareLaunchArgument("namespace", default_value="",
                               description="namespace of the node and its topics"),
         DeclareLaunchArgument("remap_description", default_value="robot_description",
@@ -37,9 +36,7 @@ def generate_launch_description():
         namespace=LaunchConfiguration("namespace"),
         output="screen",
         emulate_tty=True,
-        parameters=[LaunchConfiguration("params_file"),
-                    {"backend": LaunchConfiguration("backend"),
-                     "output_dir": LaunchConfiguration("output_dir")}],
+        parameters=[LaunchConfiguration("params_file")],
         remappings=[("robot_description", LaunchConfiguration("remap_description"))],
     )
     return LaunchDescription(args + [node])
