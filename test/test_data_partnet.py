@@ -179,6 +179,7 @@ def test_loader_reads_real_like_folder(real_like_folder):
     assert len(body.mesh.faces) == 2 * (12 + 12 + 5) and not body.mesh.is_watertight
     # y-up → z-up: height (OBJ y = 1.0) is now z; width (OBJ x = 0.8) is y; depth 0.5 is x
     assert np.allclose(body.bbox_size, [0.5, 0.8, 1.0], atol=1e-6)
+    assert np.allclose(body.bbox_center, [-0.015, 0.0, 0.5], atol=1e-6)   # handle sticks out 3 cm in front
     lo = np.min([p.mesh.bounds[0] for p in obj.parts], axis=0)
     hi = np.max([p.mesh.bounds[1] for p in obj.parts], axis=0)
     assert abs(lo[2]) < 1e-9 and np.allclose((lo[:2] + hi[:2]) / 2, 0, atol=1e-9)

@@ -417,12 +417,12 @@ def load_partnet(folder: os.PathLike, up_axis: str = "auto") -> ArticulatedObjec
     if not parts:
         raise PartNetFormatError(f"{folder}: no parts with geometry")
     _single_root(parts)
-    for p in parts:
-        p.fit_bbox_to_mesh()
     obj = ArticulatedObject(parts=parts, category=str(meta.get("model_cat", meta.get("category", ""))),
                             name=str(meta.get("name", folder.name)))
     if up_axis == "y":
         _place_on_floor(obj)
+    for p in parts:
+        p.fit_bbox_to_mesh()
     texts = _read_json(folder / "descriptions.json")
     if isinstance(texts, dict) and "descriptions" in texts:
         obj.metadata["descriptions"] = texts["descriptions"]
