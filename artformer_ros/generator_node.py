@@ -229,9 +229,10 @@ def main(argv: Optional[list[str]] = None) -> int:
         node.destroy_node()
         rclpy.try_shutdown()
     if not clean:
-        # The worker is still inside the model's generate(); its result is discarded and
-        # nothing was written. Leave without waiting for it (a native call cannot be cut).
-        logging.getLogger("artformer_ros").info("abandoned the running generation")
+        # The worker is still inside the model's generate() (its result is discarded and
+        # nothing was written) or the model is still loading. Leave without waiting: a native
+        # call cannot be cut, and interpreter teardown under a running torch thread can crash.
+        logging.getLogger("artformer_ros").info("abandoned the running model load / generation")
         logging.shutdown()
         sys.stdout.flush()
         sys.stderr.flush()

@@ -179,8 +179,8 @@ class GenerationService:
     def stop(self, timeout: Optional[float] = None) -> bool:
         """Stop accepting, answer the queued requests 'rejected', let a running export finish
         and abandon a running generation after ``timeout`` s (settings.shutdown_timeout).
-        Returns True when the worker ended (False: it is still inside the backend's generate
-        and its result will be discarded)."""
+        Returns True when the worker and the loader ended (False: one is still inside the
+        backend — generate or the model load — and its result will be discarded)."""
         timeout = self.settings.shutdown_timeout if timeout is None else timeout
         with self._cond:
             was_stopping = self._state == STOPPING
@@ -190,7 +190,7 @@ class GenerationService:
             self._cond.notify_all()
         worker = self._threads[1] if len(self._threads) > 1 else None
         if was_stopping:
-            return worker is None or not worker.is_alive()
+            return not any(t.is_alive() for t in self._threads)
         self._on_state(STOPPING, "shutting down")
         for job in drained:
             self._safe_emit(answer(job, "rejected", "rejected: node shutting down"), None)
@@ -201,7 +201,7 @@ class GenerationService:
             log.warning("an export is still running; its folder stays marked partial and is "
                         "removed at the next start")
             return False
-        return worker is None or not worker.is_alive()
+        return not any(t.is_alive() for t in self._threads)
 
     # -- requests -------------------------------------------------------------------------
     def queue_length(self) -> int:

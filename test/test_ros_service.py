@@ -181,6 +181,18 @@ def test_generation_errors_become_error_results_and_serving_continues(tmp_path):
     h.svc.stop(1)
 
 
+def test_stop_during_the_model_load(tmp_path):
+    gate = threading.Event()
+    h = Harness(tmp_path, load_gate=gate)
+    h.svc.start()
+    assert h.svc.stop(timeout=0.2) is False    # the loader is still inside load_backend
+    gate.set()
+    h.svc._threads[0].join(5)
+    assert h.svc.state == "stopping"           # a late load does not flip the state back
+    assert not h.svc.submit(Job("x", "text", text="x"))
+    assert h.wait_answers(1)[0][0]["status"] == "rejected"
+
+
 def test_stale_partial_folders_are_removed_at_start(tmp_path):
     out = tmp_path / "out"
     stale = out / "20250101T000000.000Z_00001_x"
