@@ -86,10 +86,11 @@ def _direction(azimuth: float, elevation: float) -> np.ndarray:
     return np.array([math.cos(e) * math.cos(a), math.cos(e) * math.sin(a), math.sin(e)])
 
 
-def _scene(obj, ratio: float, colours) -> tuple[np.ndarray, np.ndarray]:
-    """Triangles (T, 3, 3) and their base colours (T, 3) of the object posed at ``ratio``."""
+def _scene(obj, ratio: float, colours) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Triangles (T, 3, 3), base colours (T, 3) and a closed-surface flag (T,) of the object
+    posed at ``ratio``. Faces of watertight, outward-wound meshes may be back-face culled."""
     T = obj.link_transforms(ratio=ratio)
-    tris, cols = [], []
+    tris, cols, closed = [], [], []
     for p, c in zip(obj.parts, colours):
         if p.mesh is None or len(p.mesh.faces) == 0:
             continue
@@ -97,13 +98,18 @@ def _scene(obj, ratio: float, colours) -> tuple[np.ndarray, np.ndarray]:
         f = np.asarray(p.mesh.faces)
         tris.append(v[f])                                            # (F, 3, 3)
         cols.append(np.broadcast_to(c, (len(f), 3)))
+        try:
+            is_closed = bool(p.mesh.is_watertight and p.mesh.volume > 0)
+        except Exception:  # broken meshes: draw both sides
+            is_closed = False
+        closed.append(np.full(len(f), is_closed))
     if not tris:
-        return np.zeros((0, 3, 3)), np.zeros((0, 3))
-    return np.concatenate(tris), np.concatenate(cols)
+        return np.zeros((0, 3, 3)), np.zeros((0, 3)), np.zeros(0, dtype=bool)
+    return np.concatenate(tris), np.concatenate(cols), np.concatenate(closed)
 
 
-def _rasterise(tris: np.ndarray, cols: np.ndarray, eye: np.ndarray, target: np.ndarray,
-               fov: float, H: int, W: int, opt: RenderOptions) -> np.ndarray:
+def _rasterise(tris: np.ndarray, cols: np.ndarray, closed: np.ndarray, eye: np.ndarray,
+               target: np.ndarray, fov: float, H: int, W: int, opt: RenderOptions) -> np.ndarray:
     """Flat-shaded z-buffer render; returns (H, W, 3) float in [0, 1]."""
     img = np.empty((H, W, 3))
     img[:] = np.asarray(opt.background, dtype=np.float64)
@@ -125,6 +131,8 @@ def _rasterise(tris: np.ndarray, cols: np.ndarray, eye: np.ndarray, target: np.n
     n = np.cross(tris[:, 1] - tris[:, 0], tris[:, 2] - tris[:, 0])  # (T, 3)
     nn = np.linalg.norm(n, axis=1)
     keep &= nn > 1e-15
+    # Back faces of closed surfaces are hidden anyway: culling them halves the raster work.
+    keep &= ~(closed & (np.sum(n * (eye - tris.mean(axis=1)), axis=1) < 0))
     tris_c = (tris[keep].mean(axis=1))                               # (K, 3)
     n = n[keep] / nn[keep, None]
     view = eye - tris_c
@@ -198,7 +206,7 @@ def render_views(obj, ratios: Sequence[float] = (0.0, 0.5, 1.0), size=224, *,
     ss = max(1, int(options.supersample))
     colours = _part_colours(obj, options.colour_mode, seed)
     scenes = [_scene(obj, float(r), colours) for r in ratios]
-    pts = [t.reshape(-1, 3) for t, _ in scenes if len(t)]
+    pts = [t.reshape(-1, 3) for t, _, _ in scenes if len(t)]
     if pts:
         allp = np.concatenate(pts)
         lo, hi = allp.min(axis=0), allp.max(axis=0)
@@ -210,8 +218,8 @@ def render_views(obj, ratios: Sequence[float] = (0.0, 0.5, 1.0), size=224, *,
     dist = radius / math.sin(half_fov)
     eye = centre + dist * _direction(options.azimuth, options.elevation)
     out = np.empty((len(ratios), H, W, 3), dtype=np.uint8)
-    for k, (tris, cols) in enumerate(scenes):
-        img = _rasterise(tris, cols, eye, centre, options.fov, H * ss, W * ss, options)
+    for k, (tris, cols, closed) in enumerate(scenes):
+        img = _rasterise(tris, cols, closed, eye, centre, options.fov, H * ss, W * ss, options)
         if ss > 1:
             img = img.reshape(H, ss, W, ss, 3).mean(axis=(1, 3))
         out[k] = np.round(img * 255.0).astype(np.uint8)
