@@ -69,3 +69,18 @@ def test_render_empty_object_gives_background():
 def test_bad_colour_mode():
     with pytest.raises(ValueError, match="colour_mode"):
         render_views(example_bottle(), (0.0,), 16, options=RenderOptions(colour_mode="rainbow"))
+
+
+def test_back_face_culling_keeps_inverted_and_open_meshes_visible():
+    """Culling applies only to closed, outward-wound meshes: an inverted or open cap still
+    renders exactly like the correct one."""
+    import trimesh
+    b = example_bottle()
+    opts = RenderOptions(supersample=1)
+    ref = render_views(b, (0.0,), 64, options=opts)[0]
+    cap = b.parts[1].mesh
+    for mesh in (trimesh.Trimesh(cap.vertices, cap.faces[:, ::-1]),      # inward winding
+                 trimesh.Trimesh(cap.vertices, cap.faces[:-1])):         # one face missing
+        b.parts[1].mesh = mesh
+        img = render_views(b, (0.0,), 64, options=opts)[0]
+        assert np.abs(img.astype(int) - ref.astype(int)).mean() < 1.0
