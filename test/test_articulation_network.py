@@ -166,3 +166,16 @@ def test_shared_condition_rows_equal_repeated_rows():
     with torch.no_grad():   # an all-masked condition row stays finite (NULL token only)
         c, _ = net(tb, cond[idx], torch.zeros(3, 4, dtype=torch.bool))
     assert all(torch.isfinite(v).all() for v in c.values())
+
+
+def test_child_count_features():
+    cfg, _ = preset("tiny", count_labels=["drawer", "handle"])
+    net = ArticulationTransformer(cfg)
+    tb = _tree_batch([[-1, 0, 0, 1]])   # root, two children of the root, a grandchild
+    tb.labels = torch.tensor([[-1, -1, 0, 0, 1]])
+    c = net.child_counts(tb) * 4.0
+    assert c.shape == (1, 5, 3)
+    assert c[0, 0].tolist() == [1, 0, 0], "START has the root"
+    assert c[0, 1].tolist() == [2, 2, 0], "root: two drawers"
+    assert c[0, 2].tolist() == [1, 0, 1], "first drawer: one handle"
+    assert c[0, 3].tolist() == [0, 0, 0] and c[0, 4].tolist() == [0, 0, 0]

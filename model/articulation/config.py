@@ -31,6 +31,10 @@ class ArticulationConfig:
     tpe_levels: int = 8           # TPE length = tpe_levels * tpe_code_dim
     tpe_hidden: int = 128         # GRU cell state
     use_tpe: bool = True          # False = ablation no_tpe
+    child_counts: bool = True     # node input also gets its number of children so far, in
+                                  # total and per label (a decision beyond the paper: exact
+                                  # counts are the hardest part of the structure)
+    count_labels: list = field(default_factory=list)   # label vocabulary of those counts
     cond_dims: dict = field(default_factory=lambda: {"text": 384, "image": 1280})
     cond_layers: int = 1          # post-encoder layers over the condition tokens
     num_codebooks: int = 4        # codebook logits P: (num_codebooks, codebook_size)
@@ -104,7 +108,7 @@ def preset(name: str, ablation: str = "none", **overrides) -> tuple[Articulation
     if ablation not in ABLATIONS:
         raise ValueError(f"unknown ablation {ablation!r}; choose one of {ABLATIONS}")
     net, train = PRESETS[name]
-    net = replace(net, cond_dims=dict(net.cond_dims))
+    net = replace(net, cond_dims=dict(net.cond_dims), count_labels=list(net.count_labels))
     train = replace(train)
     if ablation == "no_tpe":
         net.use_tpe = False

@@ -109,7 +109,8 @@ def round_sample(item: TreeItem, k: int) -> dict:
 
 
 def collate(samples: list[dict], geo_shape: tuple[int, ...],
-            label_cs: Optional[torch.Tensor] = None) -> tuple[TreeBatch, Targets]:
+            label_cs: Optional[torch.Tensor] = None,
+            count_labels: Optional[list[str]] = None) -> tuple[TreeBatch, Targets]:
     B = len(samples)
     N = max(len(s["parents"]) for s in samples)
     cs_dim = samples[0]["item"].cs.shape[1]
@@ -119,6 +120,8 @@ def collate(samples: list[dict], geo_shape: tuple[int, ...],
     par = np.full((B, N), -1, np.int64)
     dep = np.full((B, N), -1, np.int64)
     mask = np.zeros((B, N), bool)
+    labs = np.full((B, N), -1, np.int64)
+    cidx = {l: i for i, l in enumerate(count_labels or [])}
     has = np.zeros((B, N), np.float32)
     ctok = np.zeros((B, N, TOKEN_DIM), np.float32)
     cjt = np.zeros((B, N), np.int64)
@@ -136,6 +139,7 @@ def collate(samples: list[dict], geo_shape: tuple[int, ...],
         par[b, :n] = s["parents"]
         dep[b, :n] = s["depth"]
         mask[b, :n] = True
+        labs[b, 1:n] = [cidx.get(it.labels[j], -1) for j in pr]
         t = s["target"]
         sel = np.nonzero(t >= 0)[0]
         has[b, sel] = 1.0
@@ -145,7 +149,7 @@ def collate(samples: list[dict], geo_shape: tuple[int, ...],
         ccs[b, sel] = it.cs[t[sel]]
         cgeo[b, sel] = it.geo[t[sel]]
     T = torch.from_numpy
-    batch = TreeBatch(T(tok), T(jt), T(cs), T(par), T(dep), T(mask))
+    batch = TreeBatch(T(tok), T(jt), T(cs), T(par), T(dep), T(mask), labels=T(labs))
     is_z = len(geo_shape) == 1
     targets = Targets(T(has), T(ctok), T(cjt), T(ccs),
                       child_P=None if is_z else T(cgeo), child_z=T(cgeo) if is_z else None,

@@ -102,6 +102,7 @@ class ArticulationModel:
         self.cs_mean = torch.as_tensor(st["cs_mean"], dtype=torch.float32)     # (64,)
         self.cs_std = torch.as_tensor(st["cs_std"], dtype=torch.float32)
         self.table_cs_n = (self.table_cs - self.cs_mean) / self.cs_std          # network space
+        self._count_index = {l: i for i, l in enumerate(self.cfg.count_labels)}
         self.text_encoder_name: str = ckpt.get("text_encoder") or "all-minilm-l6-v2"
         self.text_max_length: int = int(ckpt.get("train_config", {}).get("max_text_tokens", 128))
 
@@ -169,6 +170,7 @@ class ArticulationModel:
 
     def _initial_row(self, keep, max_nodes: int) -> dict:
         row = {"tok": [], "jt": [], "cs": [], "cs_raw": [], "geo": [], "par": [], "depth": [],
+               "lab": [],
                "nkids": [0], "done": [False], "kept": [], "src": []}   # index 0 = START
         if keep is None:
             return row
@@ -191,6 +193,7 @@ class ArticulationModel:
             row["tok"].append((torch.as_tensor(np.asarray(tok), dtype=torch.float32)
                                - self.tok_mean) / self.tok_std)
             row["jt"].append(int(jt))
+            row["lab"].append(self._count_index.get(labs[n], -1))
             row["cs"].append(c)
             row["cs_raw"].append(c)
             row["geo"].append(None)
@@ -213,6 +216,7 @@ class ArticulationModel:
         N = 1 + max(len(r["tok"]) for r in rows)
         tok = torch.zeros(B, N, TOKEN_DIM)
         jt = torch.zeros(B, N, dtype=torch.long)
+        lab = torch.full((B, N), -1, dtype=torch.long)
         cs = torch.zeros(B, N, self.cfg.cs_dim)
         par = torch.full((B, N), -1, dtype=torch.long)
         dep = torch.full((B, N), -1, dtype=torch.long)
@@ -223,11 +227,12 @@ class ArticulationModel:
             if n:
                 tok[b, 1: n + 1] = torch.stack(r["tok"])
                 jt[b, 1: n + 1] = torch.tensor(r["jt"])
+                lab[b, 1: n + 1] = torch.tensor(r["lab"])
                 cs[b, 1: n + 1] = torch.stack(r["cs"])
                 p = torch.tensor(r["par"])
                 par[b, 1: n + 1] = torch.where(p >= 0, p + 1, p)
                 dep[b, 1: n + 1] = torch.tensor(r["depth"])
-        return TreeBatch(tok, jt, cs, par, dep, mask)
+        return TreeBatch(tok, jt, cs, par, dep, mask, labels=lab)
 
     def _grow(self, row: dict, out: dict, gen: torch.Generator, max_nodes: int,
               max_depth: int, max_children: int, temperature: float) -> None:
@@ -259,7 +264,9 @@ class ArticulationModel:
             else:
                 jt = int(out["jt"][t].argmax())
             cs_raw = out["cs"][t].float()
-            cs = self.table_cs_n[self.nearest_label(cs_raw[None])[0]]
+            li = int(self.nearest_label(cs_raw[None])[0])
+            cs = self.table_cs_n[li]
+            row["lab"].append(self._count_index.get(self.table_labels[li], -1))
             row["tok"].append(out["art"][t].float().clone())
             row["jt"].append(jt)
             row["cs"].append(cs)

@@ -31,6 +31,8 @@ class TreeBatch:
     parents (B, N)     long    parent position for the TPE (-1 for START, root and padding)
     depth   (B, N)     long    root = 0; START and padding = -1
     mask    (B, N)     bool    True = real token (START included)
+    labels  (B, N)     long    index of each node's label in ``cfg.count_labels`` (-1 = none);
+                               only read by the child-count features (None = all -1)
     """
     tokens: torch.Tensor
     jtypes: torch.Tensor
@@ -38,10 +40,12 @@ class TreeBatch:
     parents: torch.Tensor
     depth: torch.Tensor
     mask: torch.Tensor
+    labels: Optional[torch.Tensor] = None
 
     def to(self, device) -> "TreeBatch":
         return TreeBatch(*(getattr(self, k).to(device) for k in
-                           ("tokens", "jtypes", "cs", "parents", "depth", "mask")))
+                           ("tokens", "jtypes", "cs", "parents", "depth", "mask")),
+                         labels=None if self.labels is None else self.labels.to(device))
 
 
 @dataclass
@@ -197,7 +201,8 @@ class ArticulationTransformer(nn.Module):
         d = cfg.d_model
         self.jt_embed = nn.Embedding(NUM_JOINT_TYPES, cfg.jt_embed_dim)
         d_node = cfg.token_dim + cfg.jt_embed_dim + cfg.cs_dim
-        self.embed = _mlp(d_node, d, d)
+        n_counts = 1 + len(cfg.count_labels) if cfg.child_counts else 0
+        self.embed = _mlp(d_node + n_counts, d, d)
         self.start = nn.Parameter(torch.randn(d) * 0.02)
         self.tpe = TreePositionEmbedding(d_node, cfg.tpe_hidden, cfg.tpe_code_dim, cfg.tpe_levels)
         self.combine = nn.Linear(d + cfg.tpe_dim, d)
@@ -214,10 +219,30 @@ class ArticulationTransformer(nn.Module):
     def num_params(self) -> int:
         return sum(p.numel() for p in self.parameters())
 
+    def child_counts(self, batch: TreeBatch) -> torch.Tensor:
+        """How many children each token already has, in total and per label: (B, N, 1+T)/4.
+        START counts the root as its child."""
+        B, N = batch.mask.shape
+        T = len(self.cfg.count_labels)
+        par = torch.where(batch.depth == 0, torch.zeros_like(batch.parents), batch.parents)
+        valid = (par >= 0) & batch.mask                                   # (B, N) has a parent
+        lab = batch.labels if batch.labels is not None else torch.full_like(par, -1)
+        onehot = torch.zeros(B, N, 1 + T)
+        onehot[..., 0] = 1.0
+        if T:
+            onehot[..., 1:] = F.one_hot(lab.clamp_min(0), T).float() * (lab >= 0).unsqueeze(-1)
+        onehot = onehot * valid.unsqueeze(-1)
+        counts = torch.zeros(B, N, 1 + T).scatter_add_(
+            1, par.clamp_min(0).unsqueeze(-1).expand(-1, -1, 1 + T), onehot)
+        return counts / 4.0
+
     def encode_nodes(self, batch: TreeBatch) -> torch.Tensor:
         """Node features + TPE -> (B, N, d)."""
         feat = torch.cat([batch.tokens, self.jt_embed(batch.jtypes), batch.cs], -1)  # (B, N, d_node)
-        emb = self.embed(feat)                                                        # (B, N, d)
+        if self.cfg.child_counts:
+            emb = self.embed(torch.cat([feat, self.child_counts(batch)], -1))         # (B, N, d)
+        else:
+            emb = self.embed(feat)
         is_start = torch.zeros_like(batch.mask)
         is_start[:, 0] = True
         emb = torch.where(is_start.unsqueeze(-1), self.start.expand_as(emb), emb)

@@ -140,7 +140,7 @@ def label_cs_normalised(data: "PreparedData") -> torch.Tensor:
 
 def make_batch(items: list[TreeItem], groups: list[tuple[int, list[int]]], geo_shape,
                text_cache: TextCache, rng: np.random.Generator,
-               label_cs: Optional[torch.Tensor] = None):
+               label_cs: Optional[torch.Tensor] = None, count_labels: Optional[list] = None):
     """groups: (item index, rounds). One description per object, shared by its rounds.
     -> batch, targets, cond tokens (U, L, D), cond mask (U, L), cond_index (B,)."""
     samples, index = [], []
@@ -148,16 +148,20 @@ def make_batch(items: list[TreeItem], groups: list[tuple[int, list[int]]], geo_s
         for k in rounds:
             samples.append(round_sample(items[i], k))
             index.append(u)
-    batch, targets = collate(samples, geo_shape, label_cs)
+    batch, targets = collate(samples, geo_shape, label_cs, count_labels)
     texts = pick_texts([items[i] for i, _ in groups], rng)
     cond, cmask = text_cache.batch(texts)
     return batch, targets, cond, cmask, torch.tensor(index)
 
 
-def lr_at(step: int, tc: TrainConfig) -> float:
+def lr_at(step: int, tc: TrainConfig, elapsed: float = 0.0) -> float:
+    """Linear warm-up, then cosine to 10 % by max_steps or by the wall-clock budget,
+    whichever comes first (a budget-limited run still anneals)."""
     if step < tc.warmup_steps:
         return tc.lr * (step + 1) / tc.warmup_steps
     prog = min(1.0, (step - tc.warmup_steps) / max(1, tc.max_steps - tc.warmup_steps))
+    if tc.max_minutes > 0:
+        prog = max(prog, min(1.0, elapsed / (tc.max_minutes * 60.0)))
     return tc.lr * (0.1 + 0.9 * 0.5 * (1 + math.cos(math.pi * prog)))
 
 
@@ -187,7 +191,7 @@ def evaluate_loss(net: ArticulationTransformer, items, geo_shape, text_cache, tc
     nb = 0
     for groups in batches[:n_batches]:
         batch, targets, cond, cmask, idx = make_batch(items, groups, geo_shape, text_cache, rng,
-                                                      label_cs)
+                                                      label_cs, net.cfg.count_labels)
         _, L = net(batch, cond, cmask, "text", cond_index=idx, targets=targets,
                    weights=asdict(tc))
         for k, v in L.items():
@@ -226,6 +230,8 @@ def train(rc: RunConfig) -> Path:
         text_cache.save(out / "cache" / "texts.pt")
     if text_cache.dim != cfg.cond_dims.get("text"):
         cfg.cond_dims["text"] = text_cache.dim
+    if cfg.child_counts:
+        cfg.count_labels = sorted(set(data.label_table["labels"]))
     torch.manual_seed(tc.seed)
     net = ArticulationTransformer(cfg)
     opt = torch.optim.AdamW(net.parameters(), lr=tc.lr, weight_decay=tc.weight_decay,
@@ -275,10 +281,10 @@ def train(rc: RunConfig) -> Path:
                                  tc.rounds_per_object, rng)
         groups = epoch.pop()
         batch, targets, cond, cmask, idx = make_batch(tr, groups, data.geo_shape, text_cache,
-                                                      rng, label_cs)
+                                                      rng, label_cs, cfg.count_labels)
         drop = torch.from_numpy(rng.random(len(groups)) < tc.cond_dropout)[idx]
         for g in opt.param_groups:
-            g["lr"] = lr_at(step, tc)
+            g["lr"] = lr_at(step, tc, elapsed_before + time.time() - t_loop)
         _, L = net(batch, cond, cmask, "text", drop=drop, cond_index=idx, targets=targets,
                    weights=asdict(tc))
         opt.zero_grad(set_to_none=True)
@@ -293,6 +299,9 @@ def train(rc: RunConfig) -> Path:
             bar.update(1)
             bar.set_postfix(loss=f"{run['total']:.3f}", end=f"{run['end']:.3f}",
                             jt=f"{run['jt']:.3f}")
+        if bar is None and step % 25 == 0:
+            log.info("step %d loss %.4f (end %.4f art %.4f jt %.4f cs %.4f)", step, run["total"],
+                     run["end"], run["art"], run["jt"], run["cs"])
         if step % tc.val_every == 0 or step == tc.max_steps:
             rec = {"step": step, "train": dict(run),
                    "time_min": (elapsed_before + time.time() - t_loop) / 60}
