@@ -165,8 +165,8 @@ def node_command(params: dict[str, Any], *, executable: Optional[list[str]] = No
     return cmd + list(extra_ros_args or [])
 
 
-def start_node(params: dict[str, Any], *, env: Optional[dict] = None, log_path: Optional[str] = None,
-               executable: Optional[list[str]] = None,
+def start_node(params: dict[str, Any], *, env: Optional[dict] = None,
+               log_path: Optional[str] = None, executable: Optional[list[str]] = None,
                extra_ros_args: Optional[list[str]] = None) -> subprocess.Popen:
     """Start the generator node as a subprocess (stdout+stderr to ``log_path`` or DEVNULL)."""
     full_env = {**os.environ, **LOCALHOST_ENV, **(env or {})}

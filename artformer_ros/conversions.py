@@ -111,8 +111,9 @@ def parse_text_request(payload: bytes | str, *, max_length: int, assigned_id: st
         try:
             text = bytes(payload).decode("utf-8", errors="strict")
         except UnicodeDecodeError as err:
-            raise RequestError(f"text is not valid UTF-8 (byte {err.start}: "
-                               f"{bytes(payload)[err.start:err.start + 1]!r})", assigned_id) from None
+            bad = bytes(payload)[err.start:err.start + 1]
+            raise RequestError(f"text is not valid UTF-8 (byte {err.start}: {bad!r})",
+                               assigned_id) from None
     else:
         text = payload
     if not text.lstrip().startswith("{"):

@@ -6,8 +6,8 @@ dict sent as JSON on ``generation_result``; ``urdf_xml`` is the URDF text of a s
 request (the node latches it on ``robot_description``) and None otherwise.
 
 Output folders: ``<output_dir>/<UTC time>_<n>_<request id>/`` holding ``result.json`` and one
-exported object folder per sample, ``sample_<k>/`` (URDF, meshes/, metadata.json). A folder is created with two
-marker files: ``.artformer_output`` (it is ours: only such folders are ever deleted) and
+exported object folder per sample, ``sample_<k>/`` (URDF, meshes/, metadata.json). A folder
+is created with two marker files: ``.artformer_output`` (it is ours: only such folders are ever deleted) and
 ``.partial`` (removed last, when everything is written). Folders still marked partial are
 not results: they are removed on abandon and at the next start. A shutdown never interrupts
 an export, so after a clean stop no partial folder exists.
@@ -100,7 +100,8 @@ def owned_folders(root: str) -> tuple[list[str], list[str]]:
     for name in names:
         path = os.path.join(root, name)
         if os.path.isdir(path) and os.path.exists(os.path.join(path, OWNER_MARKER)):
-            (partial if os.path.exists(os.path.join(path, PARTIAL_MARKER)) else complete).append(path)
+            is_partial = os.path.exists(os.path.join(path, PARTIAL_MARKER))
+            (partial if is_partial else complete).append(path)
     return complete, partial
 
 

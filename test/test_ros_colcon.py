@@ -41,7 +41,8 @@ def installed(tmp_path_factory):
            "PATH": f"{Path(sys.executable).parent}:{os.environ.get('PATH', '')}"}
     out = subprocess.run([_colcon(), "--log-base", str(tmp / "log"), "build",
                           "--base-paths", str(REPO), "--packages-select", PKG,
-                          "--build-base", str(tmp / "build"), "--install-base", str(tmp / "install")],
+                          "--build-base", str(tmp / "build"),
+                          "--install-base", str(tmp / "install")],
                          capture_output=True, text=True, env=env, cwd=tmp, timeout=300)
     assert out.returncode == 0, out.stdout + out.stderr
     assert f"Finished <<< {PKG}" in out.stdout
@@ -65,7 +66,8 @@ def test_installed_generator_node_starts_and_serves(installed):
     domain = str(random.SystemRandom().randint(1, 100))
     run_env = _sourced_env(install, {**env, "ROS_DOMAIN_ID": domain,
                                      "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"})
-    site = install / PKG / "lib" / f"python{sys.version_info[0]}.{sys.version_info[1]}" / "site-packages"
+    pyver = f"python{sys.version_info[0]}.{sys.version_info[1]}"
+    site = install / PKG / "lib" / pyver / "site-packages"
     where = subprocess.run([sys.executable, "-c", "import artformer_ros, model; "
                             "from ament_index_python.packages import get_package_share_directory "
                             "as g; print(artformer_ros.__file__); print(model.__file__); "

@@ -109,9 +109,10 @@ def _rgb(h=3, w=4):
 
 def test_rgb8_bgr8_rgba8_bgra8_mono8_with_row_padding():
     rgb = _rgb()
+    alpha = np.full((3, 4, 1), 7, np.uint8)
     for enc, pix in [("rgb8", rgb), ("bgr8", rgb[:, :, ::-1]),
-                     ("rgba8", np.concatenate([rgb, np.full((3, 4, 1), 7, np.uint8)], 2)),
-                     ("bgra8", np.concatenate([rgb[:, :, ::-1], np.full((3, 4, 1), 7, np.uint8)], 2))]:
+                     ("rgba8", np.concatenate([rgb, alpha], 2)),
+                     ("bgra8", np.concatenate([rgb[:, :, ::-1], alpha], 2))]:
         ch = pix.shape[2]
         padded = np.zeros((3, 4 * ch + 5), np.uint8)      # 5 bytes of row padding
         padded[:, :4 * ch] = pix.reshape(3, -1)

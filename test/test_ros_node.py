@@ -10,14 +10,13 @@ import sys
 import time
 import uuid
 
-import numpy as np
 import pytest
 
 rclpy = pytest.importorskip("rclpy")
 
 from artformer_ros.client import (GeneratorClient, proc_memory_kb, start_node,  # noqa: E402
                                   stop_node)
-from artformer_ros.service import OWNER_MARKER, PARTIAL_MARKER, RESULT_FILE, owned_folders  # noqa: E402
+from artformer_ros.service import OWNER_MARKER, RESULT_FILE, owned_folders  # noqa: E402
 
 pytestmark = pytest.mark.ros
 
@@ -112,7 +111,8 @@ def test_100_malformed_requests_each_get_an_error_and_the_node_keeps_serving(nod
         assert c.spin_until(lambda: len(c.result_order) >= 60 + k + 10, 30)
     answers = c.result_order
     assert len(answers) == 100
-    assert all(a["status"] == "error" and a["message"] for a in answers), [a for a in answers if a["status"] != "error"]
+    assert all(a["status"] == "error" and a["message"] for a in answers), \
+        [a for a in answers if a["status"] != "error"]
     text_ids = sorted(int(a["id"].split("-")[1]) for a in answers[:60])
     assert text_ids == list(range(1, 61))
     messages = " | ".join(a["message"] for a in answers)
