@@ -231,3 +231,16 @@ def test_prior_targets_from_geometry_checkpoints(tmp_path):
     assert am.cfg.cs_dim == 16 and am.cfg.codebook_size == 8 and am.table_cs.shape[1] == 16
     trees = am.decode(*am.encode_text(["a bottle"]), seed=0, max_nodes=4)
     assert trees[0].P_logits.shape[1:] == (4, 8)
+
+
+def test_init_from_checkpoint_fine_tunes(trained, tmp_path):
+    from model.articulation.commands import main
+    root, data, out = trained
+    src = read_checkpoint(out / "transformer.pt")
+    assert main(["train", "transformer", "--data", str(data), "--prior", "none", "--preset",
+                 "tiny", "--out", str(tmp_path / "ft"), "--steps", "1", "--lr", "1e-12",
+                 "--init", str(out / "transformer.pt"), "--no-progress"]) == 0
+    ft = read_checkpoint(tmp_path / "ft" / "transformer.pt")
+    assert ft["init"] == str(out / "transformer.pt") and ft["step"] == 1
+    w0, w1 = src["state_dict"]["head_jt.weight"], ft["state_dict"]["head_jt.weight"]
+    assert torch.allclose(w0, w1, atol=1e-6), "weights start from the given checkpoint"

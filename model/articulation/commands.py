@@ -29,6 +29,8 @@ def _parser() -> argparse.ArgumentParser:
     ap.add_argument("--preset", default="small", choices=sorted(PRESETS))
     ap.add_argument("--out", default="runs/transformer_small")
     ap.add_argument("--resume", action="store_true", help="continue from OUT/last.pt")
+    ap.add_argument("--init", metavar="CKPT", help="start from the weights of CKPT (fine-tune; "
+                                                   "tensors whose shapes differ are skipped)")
     ap.add_argument("--ablation", default="none", choices=ABLATIONS)
     ap.add_argument("--steps", type=int, help="override max_steps")
     ap.add_argument("--minutes", type=float, help="override the wall-clock budget (0 = none)")
@@ -91,13 +93,14 @@ def main(argv: list[str]) -> int:
     targets = make_targets(args.prior, args.sdf, net_cfg)
     command = "artformer train transformer " + " ".join(shlex.quote(a) for a in argv)
     path = train(RunConfig(data=args.data, out=args.out, net=net_cfg, train=tc, targets=targets,
-                           resume=args.resume, ablation=args.ablation, command=command,
+                           resume=args.resume, init=args.init, ablation=args.ablation,
+                           command=command,
                            progress=not args.no_progress))
     if args.half:
         from .checkpoint import build_network, read_checkpoint, save_checkpoint
         ck = read_checkpoint(path)
         net = build_network(ck)
-        keep = {k: ck[k] for k in ("ablation", "targets", "elapsed", "history") if k in ck}
+        keep = {k: ck[k] for k in ("ablation", "targets", "elapsed", "history", "init") if k in ck}
         save_checkpoint(args.half, net, stats=ck["stats"], label_table=ck["label_table"],
                         text_encoder=ck["text_encoder"], data_version=ck["data_version"],
                         seed=ck["seed"], command=ck["command"], step=ck["step"],

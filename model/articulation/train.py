@@ -173,6 +173,7 @@ class RunConfig:
     train: TrainConfig
     targets: object = None            # a targets provider (PriorTargets / StandInTargets)
     resume: bool = False
+    init: Optional[str] = None       # start from this checkpoint's weights (fine-tuning)
     ablation: str = "none"
     command: str = ""
     progress: bool = True
@@ -239,6 +240,15 @@ def train(rc: RunConfig) -> Path:
     step, elapsed_before, history = 0, 0.0, []
     rng = np.random.default_rng(tc.seed)
     last = out / "last.pt"
+    if rc.init and not (rc.resume and last.exists()):
+        src = read_checkpoint(rc.init)
+        own = net.state_dict()
+        same = {k: v.float() if v.is_floating_point() else v
+                for k, v in src["state_dict"].items() if k in own and own[k].shape == v.shape}
+        net.load_state_dict(same, strict=False)
+        skipped = sorted(set(own) - set(same))
+        log.info("initialised from %s (%d tensors; not taken: %s)", rc.init, len(same),
+                 skipped[:8] or "none")
     if rc.resume and last.exists():
         ck = read_checkpoint(last)
         if ck["config"] != asdict(cfg):
@@ -257,6 +267,7 @@ def train(rc: RunConfig) -> Path:
 
     def save(path: Path, final: bool = False) -> None:
         extra = {"ablation": rc.ablation, "targets": getattr(tg, "name", "?"),
+                 "init": rc.init or "",
                  "elapsed": elapsed_before + time.time() - t_loop, "history": history}
         if not final:
             extra["optimizer"] = opt.state_dict()
