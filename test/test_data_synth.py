@@ -18,15 +18,17 @@ def sample_objects():
 def test_no_interpenetration_over_10_states(sample_objects, cat, i):
     obj = sample_objects[(cat, i)]
     assert obj.category == cat and obj.movable_parts(), "every object has a moving part"
-    vols = {p.name: meshops.volume(p.mesh) for p in obj.parts}
     for r in np.linspace(0.0, 1.0, 10):
         posed = obj.posed_meshes(ratio=float(r))
         names = list(posed)
         M = meshops.pairwise_intersection_volumes([posed[n] for n in names])
         for a in range(len(names)):
             for b in range(a + 1, len(names)):
-                tol = max(2e-9, 1e-4 * min(vols[names[a]], vols[names[b]]))
-                assert M[a, b] <= tol, f"{obj.name}: {names[a]} ∩ {names[b]} = {M[a, b]:.3g} m³ at r={r:.2f}"
+                # 1 mm³ at most; touching faces give float noise only
+                assert M[a, b] <= 1e-9, f"{obj.name}: {names[a]} ∩ {names[b]} = {M[a, b]:.3g} m³ at r={r:.2f}"
+                if M[a, b] > 1e-12:
+                    x = meshops.intersection(posed[names[a]], posed[names[b]])
+                    assert np.ptp(x.vertices, axis=0).min() <= 2e-4, "overlap thicker than 0.2 mm"
 
 
 @pytest.mark.parametrize("cat,i", SAMPLE)
@@ -45,6 +47,15 @@ def test_parts_closed_attached_and_framed(sample_objects, cat, i):
         if j.type.rotates:
             turns = 3 if j.type == JointType.SCREW else 1          # caps unscrew over several turns
             assert j.r_range[0] == 0.0 and 0 < j.r_range[1] <= turns * 2 * np.pi + 1e-9
+
+
+def test_front_loader_door_clears_body_when_fully_open():
+    # seed 0 index 34 is a front loader whose round door cut 2.3 mm into the body at full
+    # opening under the first (relative) tolerance; the strict test shrinks its range.
+    obj = synth.generate_object(seed=0, index=34)
+    assert obj.category == "WashingMachine"
+    posed = obj.posed_meshes(ratio=1.0)
+    assert meshops.intersection_volume(posed["body_0"], posed["door_0"]) <= 1e-9
 
 
 def test_check_object_detects_collision_and_detachment():

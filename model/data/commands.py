@@ -61,6 +61,9 @@ def _stats(argv: list[str]) -> int:
     ap.add_argument("dir", help="prepared dataset folder (with manifest.json) or PartNet-Mobility folders")
     ap.add_argument("--plot", default="", help="PNG path (default: DIR/stats.png)")
     ap.add_argument("--markdown", action="store_true", help="print the table as Markdown")
+    ap.add_argument("--audit", default="", metavar="SRC",
+                    help="also audit the PartNet-Mobility folders SRC: exact part overlaps (POR) "
+                         "over 10 openness states and the number of distinct objects")
     args = ap.parse_args(argv)
     from model.data.stats import compute_stats, format_table, save_plot
     st = compute_stats(args.dir)
@@ -69,6 +72,12 @@ def _stats(argv: list[str]) -> int:
     png = args.plot or str(Path(args.dir) / "stats.png")
     save_plot(st, png)
     print(f"plot: {png}")
+    if args.audit:
+        from model.data.stats import audit_objects
+        a = audit_objects(args.audit)
+        print(f"audit {args.audit}: {a['objects']} objects, {a['distinct']} distinct; "
+              f"POR mean {a['por_mean']:.3g}, worst state {a['por_max_state']:.3g}; "
+              f"largest pairwise intersection {a['max_intersection_m3']:.3g} m³ ({a['worst']})")
     return 0
 
 

@@ -38,7 +38,7 @@ log = logging.getLogger(__name__)
 
 CATEGORY_WEIGHTS: dict[str, float] = {"StorageFurniture": 0.34, "Safe": 0.12, "Oven": 0.14,
                                       "WashingMachine": 0.14, "Bottle": 0.13, "USB": 0.13}
-GENERATOR_VERSION = "synth-1"
+GENERATOR_VERSION = "synth-2"   # synth-2: strict overlap test (abs 1 mm³ and 0.2 mm depth)
 
 
 @dataclass
@@ -49,8 +49,8 @@ class SynthConfig:
     max_shrinks: int = 4             # joint-range shrink rounds before redrawing an object
     max_redraws: int = 30
     attach_distance: float = 0.004  # a moving part must stay within this of its parent (m)
-    collision_abs_tol: float = 2e-9  # m³ of intersection tolerated between two parts
-    collision_rel_tol: float = 1e-4  # ... or this share of the smaller part's volume
+    collision_abs_tol: float = 1e-9  # m³ (1 mm³) of intersection tolerated between two parts...
+    collision_depth_tol: float = 2e-4  # ... if the overlap is also thinner than this (m) in some axis
 
 
 class GenerationRejected(RuntimeError):
@@ -764,13 +764,16 @@ def _T34(T: np.ndarray) -> np.ndarray:
 
 
 def check_object(obj: ArticulatedObject, states: int = 10, *, attach_distance: float = 0.004,
-                 abs_tol: float = 2e-9, rel_tol: float = 1e-4, manifolds: Optional[dict] = None,
+                 abs_tol: float = 1e-9, depth_tol: float = 2e-4, manifolds: Optional[dict] = None,
                  stop_early: bool = False) -> CheckReport:
     """Exact pairwise intersection volumes of all parts at ``states`` openness ratios, and the
-    distance of every moving part to its parent. Parts touching at faces pass."""
+    distance of every moving part to its parent.
+
+    A pair collides when their intersection exceeds ``abs_tol`` m³, or when it is non-empty
+    (> 1e-12 m³) and its bounding box is thicker than ``depth_tol`` in every axis (a real
+    interpenetration, however small). Parts touching at faces pass (float32 noise only)."""
     names = [p.name for p in obj.parts]
     mans = manifolds or {p.name: meshops.to_manifold(p.mesh) for p in obj.parts}
-    vols = {n: float(mans[n].volume()) for n in names}
     rep = CheckReport()
     moving = set(names[i] for i in obj.movable_parts())
     for r in np.linspace(0.0, 1.0, states):
@@ -784,8 +787,12 @@ def check_object(obj: ArticulatedObject, states: int = 10, *, attach_distance: f
                 ba, bb = boxes[a], boxes[bn]
                 if np.any(ba[:3] >= bb[3:]) or np.any(bb[:3] >= ba[3:]):
                     continue
-                v = float((posed[a] ^ posed[bn]).volume())
-                if v > max(abs_tol, rel_tol * min(vols[a], vols[bn])):
+                x = posed[a] ^ posed[bn]
+                v = float(x.volume())
+                if v <= 1e-12:
+                    continue
+                xb = np.asarray(x.bounding_box())
+                if v > abs_tol or float((xb[3:] - xb[:3]).min()) > depth_tol:
                     rep.collisions.append((a, bn, float(r), v))
                     if stop_early:
                         return rep
@@ -872,7 +879,7 @@ def generate_object(seed: int = 0, index: int = 0, config: Optional[SynthConfig]
         mans = {p["name"]: p["man"] for p in b.parts}
         for _ in range(cfg.max_shrinks + 1):
             rep = check_object(obj, cfg.states, attach_distance=cfg.attach_distance,
-                               abs_tol=cfg.collision_abs_tol, rel_tol=cfg.collision_rel_tol,
+                               abs_tol=cfg.collision_abs_tol, depth_tol=cfg.collision_depth_tol,
                                manifolds=mans, stop_early=True)
             if rep.ok:
                 obj.validate()
@@ -951,7 +958,7 @@ def synthesize_dataset(out: str, n: int, seed: int = 0, workers: int = 2, config
     info = {"generator": GENERATOR_VERSION, "seed": seed, "n": n, "errors": errors,
             "seconds_last_run": round(time.time() - t0, 1), "config": {
                 "states": cfg.states, "attach_distance": cfg.attach_distance,
-                "collision_abs_tol": cfg.collision_abs_tol, "collision_rel_tol": cfg.collision_rel_tol,
+                "collision_abs_tol": cfg.collision_abs_tol, "collision_depth_tol": cfg.collision_depth_tol,
                 "categories": cfg.categories}}
     from model.data.format import atomic_write_json
     atomic_write_json(Path(out) / "synth.json", info)
