@@ -31,7 +31,7 @@ def _tiny_checkpoints(folder):
 
 
 @pytest.fixture(scope="module")
-def model_node(tmp_path_factory):
+def ros_setup(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("ros_model")
     ckpt = _tiny_checkpoints(tmp / "ckpt")
     saved = {k: os.environ.get(k) for k in ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE")}
@@ -39,23 +39,34 @@ def model_node(tmp_path_factory):
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     ctx = rclpy.Context()
     rclpy.init(context=ctx)
-    ns = f"/m_{uuid.uuid4().hex[:8]}"
-    log = tmp / "node.log"
-    proc = start_node({"backend": "model", "checkpoint": str(ckpt), "output_dir": str(tmp / "out"),
-                       "resolution": 24, "steps": 4, "preview": False, "threads": 1},
-                      log_path=str(log), extra_ros_args=["-r", f"__ns:={ns}"])
-    client = GeneratorClient(context=ctx, namespace=ns)
-    yield {"proc": proc, "client": client, "ctx": ctx, "ns": ns, "log": log, "tmp": tmp}
-    client.close()
-    rc = stop_node(proc, 60)
+    yield {"ctx": ctx, "tmp": tmp, "ckpt": ckpt}
     rclpy.try_shutdown(context=ctx)
     for k, v in saved.items():
         if v is None:
             os.environ.pop(k, None)
         else:
             os.environ[k] = v
+
+
+def _start(setup, name):
+    ns = f"/m_{uuid.uuid4().hex[:8]}"
+    log = setup["tmp"] / f"{name}.log"
+    proc = start_node({"backend": "model", "checkpoint": str(setup["ckpt"]),
+                       "output_dir": str(setup["tmp"] / f"{name}_out"), "resolution": 24,
+                       "steps": 4, "preview": False, "threads": 1, "seed": 0},
+                      log_path=str(log), extra_ros_args=["-r", f"__ns:={ns}"])
+    client = GeneratorClient(context=setup["ctx"], namespace=ns)
+    return {"proc": proc, "client": client, "ctx": setup["ctx"], "ns": ns, "log": log}
+
+
+@pytest.fixture(scope="module")
+def model_node(ros_setup):
+    node = _start(ros_setup, "node")
+    yield node
+    node["client"].close()
+    rc = stop_node(node["proc"], 60)
     assert rc == 0
-    assert "Traceback" not in log.read_text()
+    assert "Traceback" not in node["log"].read_text()
 
 
 def test_request_while_the_model_loads_gets_a_clear_error(model_node):
@@ -98,3 +109,18 @@ def test_image_request_is_answered_by_the_image_stage(model_node):
     assert os.path.isfile(res["urdf_path"])
     assert c.spin_until(lambda: c.descriptions and
                         c.descriptions[-1][1] == open(res["urdf_path"]).read(), 30)
+
+
+def test_sigint_while_the_model_loads_exits_cleanly(ros_setup):
+    node = _start(ros_setup, "early_stop")
+    c = node["client"]
+    try:
+        assert c.spin_until(lambda: c.status is not None, 30)
+        assert c.status["state"] == "loading"   # torch + encoders: seconds of loading left
+    finally:
+        c.close()
+        rc = stop_node(node["proc"], 60)
+    assert rc == 0
+    log = node["log"].read_text()
+    assert "Traceback" not in log and "Fatal" not in log
+    assert "abandoned the running model load" in log

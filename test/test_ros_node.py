@@ -219,18 +219,6 @@ def test_sigterm_when_idle_exits_zero(node_factory):
     assert "Traceback" not in node.log_text()
 
 
-def test_sigint_while_the_model_loads_exits_cleanly(node_factory, tmp_path):
-    # the model backend spends seconds importing torch and the encoders before it can fail
-    # on this missing checkpoint folder: the signal arrives in the middle of the load
-    node = node_factory(backend="model", checkpoint=str(tmp_path / "no_such_checkpoints"))
-    c = node.client
-    assert c.spin_until(lambda: c.status is not None, 30)
-    assert c.status["state"] == "loading"
-    assert node.stop() == 0
-    log = node.log_text()
-    assert "Traceback" not in log and "Fatal" not in log
-
-
 def test_parameters_are_validated_at_run_time(node_factory):
     from rclpy.parameter import Parameter
     from rclpy.parameter_client import AsyncParameterClient
