@@ -77,7 +77,8 @@ def _stats(argv: list[str]) -> int:
         a = audit_objects(args.audit)
         print(f"audit {args.audit}: {a['objects']} objects, {a['distinct']} distinct; "
               f"POR mean {a['por_mean']:.3g}, worst state {a['por_max_state']:.3g}; "
-              f"largest pairwise intersection {a['max_intersection_m3']:.3g} m³ ({a['worst']})")
+              f"largest pairwise intersection {a['max_intersection_m3']:.3g} m³ ({a['worst']}); "
+              f"{len(a['overlapping'])} objects with a real overlap {a['overlapping'][:20]}")
     return 0
 
 

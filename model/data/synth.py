@@ -38,7 +38,7 @@ log = logging.getLogger(__name__)
 
 CATEGORY_WEIGHTS: dict[str, float] = {"StorageFurniture": 0.34, "Safe": 0.12, "Oven": 0.14,
                                       "WashingMachine": 0.14, "Bottle": 0.13, "USB": 0.13}
-GENERATOR_VERSION = "synth-2"   # synth-2: strict overlap test (abs 1 mm³ and 0.2 mm depth)
+GENERATOR_VERSION = "synth-2"   # synth-2: strict overlap test (≤ 1 mm³ and ≤ 0.2 mm thick)
 
 
 @dataclass
@@ -50,7 +50,7 @@ class SynthConfig:
     max_redraws: int = 30
     attach_distance: float = 0.004  # a moving part must stay within this of its parent (m)
     collision_abs_tol: float = 1e-9  # m³ (1 mm³) of intersection tolerated between two parts...
-    collision_depth_tol: float = 2e-4  # ... if the overlap is also thinner than this (m) in some axis
+    collision_depth_tol: float = 2e-4  # ... and if its mean thickness 2V/A is below this (m)
 
 
 class GenerationRejected(RuntimeError):
@@ -770,7 +770,7 @@ def check_object(obj: ArticulatedObject, states: int = 10, *, attach_distance: f
     distance of every moving part to its parent.
 
     A pair collides when their intersection exceeds ``abs_tol`` m³, or when it is non-empty
-    (> 1e-12 m³) and its bounding box is thicker than ``depth_tol`` in every axis (a real
+    (> 1e-12 m³) and its mean thickness 2·volume / area exceeds ``depth_tol`` (a real
     interpenetration, however small). Parts touching at faces pass (float32 noise only)."""
     names = [p.name for p in obj.parts]
     mans = manifolds or {p.name: meshops.to_manifold(p.mesh) for p in obj.parts}
@@ -791,8 +791,10 @@ def check_object(obj: ArticulatedObject, states: int = 10, *, attach_distance: f
                 v = float(x.volume())
                 if v <= 1e-12:
                     continue
-                xb = np.asarray(x.bounding_box())
-                if v > abs_tol or float((xb[3:] - xb[:3]).min()) > depth_tol:
+                # mean thickness of the overlap: a contact sheet (float noise of touching faces,
+                # at any orientation) is ~0 thick; a real interpenetration is not
+                thick = 2.0 * v / max(float(x.surface_area()), 1e-18)
+                if v > abs_tol or thick > depth_tol:
                     rep.collisions.append((a, bn, float(r), v))
                     if stop_early:
                         return rep
