@@ -43,7 +43,7 @@ class PreparedData:
 
 
 def _part_targets(root: Path, recs: list[fmt.ObjectRecord], targets, predict_z: bool,
-                  cache_path: Optional[Path]) -> dict[str, np.ndarray]:
+                  cache_path: Optional[Path], progress: bool = True) -> dict[str, np.ndarray]:
     """Per object: geometry target of every part (P_gt (K,C,N) or raw z (K,Z)), cached."""
     key = f"{getattr(targets, 'name', 'targets')}:{getattr(targets, 'prior_path', '')}:" \
           f"{getattr(targets, 'sdf_path', '')}:{'z' if predict_z else 'P'}"
@@ -55,7 +55,7 @@ def _part_targets(root: Path, recs: list[fmt.ObjectRecord], targets, predict_z: 
     todo = [r for r in recs if r.id not in cache]
     if todo:
         from tqdm import tqdm
-        for r in tqdm(todo, desc="part targets", unit="obj", disable=len(todo) < 50):
+        for r in tqdm(todo, desc="part targets", unit="obj", disable=not progress or len(todo) < 50):
             arr = fmt.load_part_arrays(root, r.id)
             z = targets.part_latents(arr["points"].astype(np.float32))          # (K, Z)
             if predict_z:
@@ -71,7 +71,7 @@ def _part_targets(root: Path, recs: list[fmt.ObjectRecord], targets, predict_z: 
 def prepare_data(data_root: str, targets, *, predict_z: bool = False,
                  splits: tuple[str, ...] = ("train", "val"),
                  cache_dir: Optional[str] = None, stats: Optional[dict] = None,
-                 label_table: Optional[dict] = None) -> PreparedData:
+                 label_table: Optional[dict] = None, progress: bool = True) -> PreparedData:
     """Read a prepared dataset and build training items. ``stats`` / ``label_table`` from a
     checkpoint are reused when given (evaluation), else computed on the train split."""
     root = Path(data_root)
@@ -86,7 +86,8 @@ def prepare_data(data_root: str, targets, *, predict_z: bool = False,
     for s, rs in recs.items():
         if s in splits or stats is None:
             geo.update(_part_targets(root, rs, targets, predict_z,
-                                     cache / f"targets_{version}_{s}.pt" if cache else None))
+                                     cache / f"targets_{version}_{s}.pt" if cache else None,
+                                     progress))
     if stats is None:
         toks = np.concatenate([np.asarray(r.tokens, np.float64) for r in recs["train"]])
         std = toks.std(0)
@@ -218,7 +219,7 @@ def train(rc: RunConfig) -> Path:
     else:   # one_codebook ablation: see _CodebookView
         cfg.codebook_size = int(tg.num_codebooks) * int(tg.codebook_size)
     data = prepare_data(rc.data, _CodebookView(tg, cfg), predict_z=cfg.predict_z,
-                        cache_dir=str(out / "cache"))
+                        cache_dir=str(out / "cache"), progress=rc.progress)
     tr, va = data.items["train"], data.items.get("val") or []
     log.info("data %s: %d train / %d val objects, %d train rounds, %d labels",
              data.data_version, len(tr), len(va), len(all_samples(tr)),
