@@ -174,3 +174,31 @@ def test_ddp_two_processes(prim_data, tmp_path):
     assert r.returncode == 0, r.stderr[-3000:]
     ck = torch.load(tmp_path / "ddp" / "ckpt.pt", weights_only=True)
     assert ck["step"] == 4
+
+
+def test_box_frame_samples_exact_and_fallback(prim_data):
+    from model.geometry.data import load_parts
+    exact = load_parts(prim_data, "train")
+    approx = load_parts(prim_data, "train", exact=False)
+    assert exact.points.shape[0] == approx.points.shape[0] == len(exact.texts)
+    for ps in (exact, approx):
+        p = ps.points.float()
+        ext = p.max(1).values - p.min(1).values                     # (M, 3)
+        assert torch.allclose(ext, torch.full_like(ext, 1.9), atol=0.08)   # every axis fills the box
+        assert ps.sdf.shape[-1] == 4 and ps.sdf[..., :3].abs().max() <= 1.05 + 1e-3
+    # parts labelled "body" are boxes: exact box-frame SDF is the SDF of the 0.95 cube
+    assert any(t.endswith("body") for t in exact.texts)
+    for i, t in enumerate(exact.texts):
+        if t.endswith("body"):
+            s = exact.sdf[i].float()
+            q = s[:, :3].abs() - 0.95
+            ref = q.clamp_min(0).norm(dim=-1) + q.max(-1).values.clamp_max(0)
+            assert (s[:, 3] - ref).abs().max() < 0.01
+            # the first-order fallback agrees in sign everywhere
+            assert ((approx.sdf[i, :, 3].float() < 0) == (approx_ref(approx, i) < 0)).float().mean() > 0.99
+            break
+
+
+def approx_ref(ps, i):
+    q = ps.sdf[i, :, :3].float().abs() - 0.95
+    return q.clamp_min(0).norm(dim=-1) + q.max(-1).values.clamp_max(0)

@@ -111,6 +111,18 @@ class LocalPoolPointNet(nn.Module):
         return torch.stack(planes, dim=1)                            # (B, 3, C, R, R)
 
 
+def _signal_preserving_init(module: nn.Module) -> None:
+    """He init of convs / linears. PyTorch's default shrinks the variance ~3x per layer, so
+    after the ~8 layers between z and the SDF decoder z's influence vanishes and the decoder
+    learns one mean shape (observed: identical SDFs for shuffled latents)."""
+    for m in module.modules():
+        if isinstance(m, (nn.Conv2d, nn.ConvTranspose2d, nn.Linear)):
+            nn.init.kaiming_normal_(m.weight, nonlinearity="relu",
+                                    mode="fan_out" if isinstance(m, nn.ConvTranspose2d) else "fan_in")
+            if m.bias is not None:
+                nn.init.zeros_(m.bias)
+
+
 class PlaneNet(nn.Module):
     """Small residual conv net applied to each plane (shared weights)."""
 
@@ -119,6 +131,8 @@ class PlaneNet(nn.Module):
         self.inp = nn.Conv2d(c, hidden, 3, padding=1)
         self.mid = nn.Conv2d(hidden, hidden, 3, padding=1)
         self.out = nn.Conv2d(hidden, c, 3, padding=1)
+        _signal_preserving_init(self)
+        nn.init.zeros_(self.out.weight)      # starts as the identity
 
     def forward(self, planes: torch.Tensor) -> torch.Tensor:
         B, K, C, R, _ = planes.shape
@@ -142,6 +156,7 @@ class PlaneVAE(nn.Module):
         self.enc = nn.Sequential(*enc)
         r = cfg.latent_res
         self.flat = 3 * chans[-1] * r * r
+        self.enc_norm = nn.LayerNorm(self.flat)   # unit-scale features: mu well above the noise
         self.to_stats = nn.Linear(self.flat, 2 * cfg.z_dim)
         self.from_z = nn.Linear(cfg.z_dim, self.flat)
         dec = []
@@ -150,13 +165,19 @@ class PlaneVAE(nn.Module):
             dec += [nn.SiLU(), nn.ConvTranspose2d(a, a, 4, stride=2, padding=1), nn.SiLU(),
                     nn.Conv2d(a, b, 3, padding=1)]
         self.dec = nn.Sequential(*dec)
+        _signal_preserving_init(self)
+        # Start with a small posterior std (0.05 < prior 0.25): with unit noise the decoder
+        # first learns to ignore z and the posterior collapses to the prior.
+        with torch.no_grad():
+            self.to_stats.weight[cfg.z_dim:].mul_(0.01)
+            self.to_stats.bias[cfg.z_dim:].fill_(2 * math.log(0.05))
 
     def encode(self, planes: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
         """-> mu, logvar, each (B, Z)."""
         B, K, C, R, _ = planes.shape
         h = self.enc(planes.reshape(B * K, C, R, R))                 # (B*3, c, r, r)
-        mu, logvar = self.to_stats(h.reshape(B, -1)).chunk(2, dim=-1)
-        return mu, logvar.clamp(-20.0, 5.0)
+        mu, logvar = self.to_stats(self.enc_norm(h.reshape(B, -1))).chunk(2, dim=-1)
+        return mu, logvar.clamp(-20.0, 2 * math.log(self.cfg.posterior_std_max))
 
     def decode(self, z: torch.Tensor) -> torch.Tensor:
         """z (B, Z) -> planes (B, 3, C, R, R)."""
@@ -195,6 +216,18 @@ class SDFDecoder(nn.Module):
         return self.out(h).squeeze(-1)
 
 
+def clamped_l1(pred: torch.Tensor, sdf: torch.Tensor, c: float) -> torch.Tensor:
+    """L1 to the SDF clamped at +-c, with no penalty where both are beyond c on the same side.
+
+    Unlike |clamp(pred) - clamp(sdf)|, a prediction that overshoots the clamp on the wrong
+    side (or inside the band) still gets a gradient, so a network whose initial outputs
+    all exceed c does not get stuck.
+    """
+    t = sdf.clamp(-c, c)
+    done = (sdf.abs() >= c) & (pred * torch.sign(sdf) >= c)
+    return torch.where(done, torch.zeros_like(pred), (pred - t).abs()).mean()
+
+
 class SDFAutoEncoder(nn.Module):
     def __init__(self, cfg: SDFConfig):
         super().__init__()
@@ -203,6 +236,10 @@ class SDFAutoEncoder(nn.Module):
         self.plane_net = PlaneNet(cfg.plane_channels, cfg.plane_net_channels)
         self.vae = PlaneVAE(cfg)
         self.plane_out = PlaneNet(cfg.plane_channels, cfg.plane_net_channels)
+        # A global path z -> C added to every plane (so to the summed features): the decoder
+        # uses z from the first steps instead of learning one mean shape while the conv path
+        # warms up (observed without it: identical SDFs for shuffled latents after 800 steps).
+        self.global_code = nn.Linear(cfg.z_dim, cfg.plane_channels)
         self.decoder = SDFDecoder(cfg)
 
     # -- training -------------------------------------------------------------------------
@@ -212,9 +249,8 @@ class SDFAutoEncoder(nn.Module):
         cfg = self.cfg
         mu, logvar = self.vae.encode(self.plane_net(self.pointnet(points)))   # (B, Z) x2
         z = mu + torch.randn_like(mu) * (0.5 * logvar).exp()
-        pred = self.decoder(self.plane_out(self.vae.decode(z)), queries)      # (B, N)
-        c = cfg.sdf_clamp
-        l1 = (pred.clamp(-c, c) - sdf.clamp(-c, c)).abs().mean()
+        pred = self.decoder(self._planes(z), queries)                         # (B, N)
+        l1 = clamped_l1(pred, sdf, cfg.sdf_clamp)
         var_p = cfg.prior_std ** 2
         kl = 0.5 * ((logvar.exp() + mu.pow(2)) / var_p - 1.0 - logvar + math.log(var_p))
         kl = kl.sum(-1).mean()
@@ -228,10 +264,14 @@ class SDFAutoEncoder(nn.Module):
         mu, _ = self.vae.encode(self.plane_net(self.pointnet(points)))
         return mu
 
+    def _planes(self, z: torch.Tensor) -> torch.Tensor:
+        g = self.global_code(z) / 3.0                                   # (B, C), summed over 3 planes
+        return self.plane_out(self.vae.decode(z)) + g[:, None, :, None, None]
+
     @torch.inference_mode()
     def decode_planes(self, z: torch.Tensor) -> torch.Tensor:
         """z (B, Z) -> planes (B, 3, C, R, R)."""
-        return self.plane_out(self.vae.decode(z))
+        return self._planes(z)
 
     @torch.inference_mode()
     def query(self, planes: torch.Tensor, xyz: torch.Tensor) -> torch.Tensor:

@@ -16,18 +16,20 @@ class SDFConfig:
     """Tri-plane SDF auto-encoder (DESIGN §4.1)."""
     bound: float = 1.05            # planes cover [-bound, bound]^2: the WHOLE part cube (+ margin)
     plane_res: int = 32            # R: each plane is C x R x R
-    plane_channels: int = 32       # C
-    pointnet_hidden: int = 64      # width of the local-pooling PointNet
-    pointnet_blocks: int = 3       # ResNet blocks; each is followed by tri-plane local pooling
-    plane_net_channels: int = 32   # width of the small per-plane conv net after scattering
-    vae_channels: tuple[int, ...] = (64, 64, 64)   # conv widths; each halves the resolution
+    plane_channels: int = 16       # C
+    pointnet_hidden: int = 32      # width of the local-pooling PointNet
+    pointnet_blocks: int = 2       # ResNet blocks; all but the first follow a local pooling
+    plane_net_channels: int = 16   # width of the small per-plane conv net after scattering
+    vae_channels: tuple[int, ...] = (32, 64, 64)   # conv widths; each halves the resolution
     z_dim: int = 256               # the latent z (a flat vector)
-    mlp_hidden: int = 64           # SDF decoder width
-    mlp_layers: int = 4            # SDF decoder hidden layers
-    mlp_skip: int = 2              # the input is concatenated again before this hidden layer
+    mlp_hidden: int = 64           # SDF decoder width (meshing cost ~ width^2)
+    mlp_layers: int = 3            # SDF decoder hidden layers
+    mlp_skip: int = 1              # the input is concatenated again before this hidden layer
     prior_std: float = 0.25        # KL against N(0, prior_std^2) (ref)
     kl_weight: float = 1e-5        # (ref)
-    sdf_clamp: float = 0.3         # L1 on SDF values clamped to +-sdf_clamp
+    posterior_std_max: float = 0.05  # cap on the posterior std: with Adam the tiny KL term
+                                     # otherwise drives the encoder to the prior (collapse)
+    sdf_clamp: float = 0.2         # L1 on SDF values clamped to +-sdf_clamp
 
     @property
     def latent_res(self) -> int:
@@ -46,9 +48,10 @@ class SDFConfig:
 class PriorConfig:
     """Codebook-conditioned diffusion prior over z (DESIGN §4.2)."""
     z_dim: int = 256               # must equal the auto-encoder's z_dim
-    width: int = 256               # transformer token width
+    width: int = 128               # transformer token width (DDIM cost ~ width^2 x steps)
     depth: int = 4                 # transformer blocks (paper: 4)
     heads: int = 4
+    ffn_mult: int = 2              # feed-forward hidden = ffn_mult x width
     n_codebooks: int = 4
     codebook_size: int = 128       # N
     code_dim: int = 32             # d
@@ -106,16 +109,16 @@ def _presets() -> dict[str, Preset]:
     small = Preset(
         sdf=SDFConfig(),
         prior=PriorConfig(),
-        sdf_train=TrainConfig(steps=6000, batch_size=16, lr=1e-3, warmup=200, n_points=1024,
-                              n_queries=2048, val_every=500, val_parts=128, ckpt_every=500),
-        prior_train=TrainConfig(steps=6000, batch_size=256, lr=5e-4, warmup=200,
-                                val_every=500, val_parts=512, ckpt_every=1000),
+        sdf_train=TrainConfig(steps=2400, batch_size=16, lr=2e-3, warmup=100, n_points=512,
+                              n_queries=2048, val_every=200, val_parts=96, ckpt_every=200),
+        prior_train=TrainConfig(steps=4000, batch_size=128, lr=1e-3, warmup=200,
+                                val_every=500, val_parts=512, ckpt_every=500),
     )
     paper = Preset(
         sdf=SDFConfig(plane_res=64, plane_channels=256, pointnet_hidden=256, pointnet_blocks=5,
                       plane_net_channels=256, vae_channels=(256, 256, 256, 256), z_dim=768,
-                      mlp_hidden=512, mlp_layers=9, mlp_skip=4),
-        prior=PriorConfig(z_dim=768, width=768, depth=4, heads=8, n_codebooks=4,
+                      mlp_hidden=512, mlp_layers=9, mlp_skip=4, sdf_clamp=0.1),
+        prior=PriorConfig(z_dim=768, width=768, depth=4, heads=8, ffn_mult=4, n_codebooks=4,
                           codebook_size=128, code_dim=32, text_dim=1024, cs_dim=64,
                           encoder_hidden=512, text_encoder="t5-large"),
         sdf_train=TrainConfig(steps=200_000, batch_size=32, lr=1e-4, warmup=1000,

@@ -43,14 +43,15 @@ def timestep_embedding(t: torch.Tensor, dim: int) -> torch.Tensor:
 
 
 class Block(nn.Module):
-    def __init__(self, width: int, heads: int):
+    def __init__(self, width: int, heads: int, ffn_mult: int = 4):
         super().__init__()
         self.ln1 = nn.LayerNorm(width)
         self.attn = nn.MultiheadAttention(width, heads, batch_first=True)
         self.ln2 = nn.LayerNorm(width)
         self.cross = nn.MultiheadAttention(width, heads, batch_first=True)
         self.ln3 = nn.LayerNorm(width)
-        self.ff = nn.Sequential(nn.Linear(width, 4 * width), nn.GELU(), nn.Linear(4 * width, width))
+        self.ff = nn.Sequential(nn.Linear(width, ffn_mult * width), nn.GELU(),
+                                nn.Linear(ffn_mult * width, width))
 
     def forward(self, x: torch.Tensor, ctx: torch.Tensor) -> torch.Tensor:
         """x (B, L, W), ctx (B, M, W) -> (B, L, W)."""
@@ -74,7 +75,7 @@ class Denoiser(nn.Module):
         self.null_geo = nn.Parameter(torch.randn(1, K, W) * 0.02)
         self.null_ctx = nn.Parameter(torch.randn(1, cfg.cs_tokens, W) * 0.02)
         self.ctx_in = nn.Linear(cfg.cs_dim, cfg.cs_tokens * W)
-        self.blocks = nn.ModuleList([Block(W, cfg.heads) for _ in range(cfg.depth)])
+        self.blocks = nn.ModuleList([Block(W, cfg.heads, cfg.ffn_mult) for _ in range(cfg.depth)])
         self.ln_out = nn.LayerNorm(W)
         self.out = nn.Linear(W, cfg.z_dim)
 

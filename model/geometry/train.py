@@ -172,10 +172,11 @@ def train_sdf(args: RunArgs) -> dict:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     max_sdf = preset.sdf_train.max_sdf
+    cache = out / "cache"
     train = load_parts(args.data, "train", progress=dist.main and args.progress, max_sdf=max_sdf,
-                       seed=args.seed)
+                       seed=args.seed, cache_dir=cache)
     try:
-        val = load_parts(args.data, "val", max_sdf=max_sdf, seed=args.seed)
+        val = load_parts(args.data, "val", max_sdf=max_sdf, seed=args.seed, cache_dir=cache)
     except (KeyError, ValueError):
         val = train
     tcfg = _train_cfg(preset.sdf_train, args, len(train), dist.world)
@@ -194,11 +195,11 @@ def train_sdf(args: RunArgs) -> dict:
         return net(pts, q, s)
 
     def val_fn():
-        c = cfg.sdf_clamp
+        from .autoencoder import clamped_l1
         tot = n = 0.0
         for pts, q, s in vbatches:
             pred = model.query(model.decode_planes(model.encode(pts)), q)
-            tot += float((pred.clamp(-c, c) - s.clamp(-c, c)).abs().sum())
+            tot += float(clamped_l1(pred, s, cfg.sdf_clamp)) * s.numel()
             n += s.numel()
         return tot / max(n, 1)
 
