@@ -175,7 +175,7 @@ def image_to_rgb(msg: Any, *, max_pixels: int) -> np.ndarray:
         return np.repeat(img, 3, axis=2)                        # (H, W, 3)
     if enc.startswith("bgr"):
         img = img[:, :, 2::-1]                                  # BGR(A) -> RGB
-    return np.ascontiguousarray(img[:, :, :3])                  # (H, W, 3)
+    return np.array(img[:, :, :3], order="C", copy=True)        # (H, W, 3), owns its data
 
 
 # ---------------------------------------------------------------------------------------------

@@ -120,6 +120,10 @@ def test_rgb8_bgr8_rgba8_bgra8_mono8_with_row_padding():
                            max_pixels=100)
         assert out.shape == (3, 4, 3) and out.dtype == np.uint8
         np.testing.assert_array_equal(out, rgb, err_msg=enc)
+    data = bytearray(rgb.tobytes())
+    out = image_to_rgb(Img(3, 4, "rgb8", data=data), max_pixels=100)
+    data[0] = 255                                  # the result does not alias the message
+    assert out[0, 0, 0] == 0 and out.flags.owndata and out.flags.c_contiguous
     mono = np.arange(12, dtype=np.uint8).reshape(3, 4)
     out = image_to_rgb(Img(3, 4, "mono8", data=mono.tobytes(), channels=1), max_pixels=100)
     np.testing.assert_array_equal(out, np.repeat(mono[:, :, None], 3, 2))
