@@ -58,7 +58,9 @@ def make_tiny_checkpoints(folder, seed: int = 0, end_bias: float = -1.0,
     folder.mkdir(parents=True, exist_ok=True)
     torch.manual_seed(seed)
     geo = get_preset("tiny")
-    save_geo(folder / "sdf.pt", "sdf", SDFAutoEncoder(geo.sdf))
+    ae = SDFAutoEncoder(geo.sdf)
+    _octahedron_decoder(ae.decoder)
+    save_geo(folder / "sdf.pt", "sdf", ae)
     save_geo(folder / "prior.pt", "prior", ShapePrior(geo.prior))
     cfg, _ = preset("tiny", ablation, codebook_size=geo.prior.codebook_size,
                     num_codebooks=1 if ablation == "one_codebook" else geo.prior.n_codebooks,
@@ -79,3 +81,19 @@ def make_tiny_checkpoints(folder, seed: int = 0, end_bias: float = -1.0,
              text_encoder="all-minilm-l6-v2", data_version="tiny", seed=seed, command="test",
              step=0)
     return folder
+
+
+def _octahedron_decoder(dec) -> None:
+    """Set the SDF MLP to |x| + |y| + |z| - 0.6 (plane features ignored): random decoders
+    may produce no surface at all, which would make the smoke runs depend on the init."""
+    import torch
+    with torch.no_grad():
+        for layer in list(dec.layers) + [dec.out]:
+            layer.weight.zero_()
+            layer.bias.zero_()
+        signs = torch.tensor([[1.0, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]])
+        dec.layers[0].weight[:6, :3] = signs          # relu(+-x), relu(+-y), relu(+-z)
+        for layer in list(dec.layers)[1:]:
+            layer.weight[:6, :6] = torch.eye(6)       # carried through (skip input appended after)
+        dec.out.weight[0, :6] = 1.0
+        dec.out.bias.fill_(-0.6)

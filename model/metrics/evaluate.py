@@ -249,8 +249,8 @@ def score_method(out: MethodOutput, refs: list, D_rr: Optional[np.ndarray], clou
     if refs and gen_test and D_rr is not None:
         cg = [clouds(o) for o in gen_test]
         cr = [clouds(o) for o in refs]
-        D_gg = id_matrix(cg, workers=cfg.workers)
-        D_gr = id_matrix(cg, cr, workers=cfg.workers)
+        D_gg = id_matrix(cg, workers=cfg.workers, progress=cfg.progress)
+        D_gr = id_matrix(cg, cr, workers=cfg.workers, progress=cfg.progress)
         m = set_metrics(D_gg, D_gr, D_rr)
         res.update(mmd=m.mmd, cov=m.cov, nna=m.nna, n_generated=m.n_generated,
                    n_reference=m.n_reference)

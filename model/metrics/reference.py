@@ -3,7 +3,9 @@ retrieval baseline (the training object whose description embedding is nearest).
 """
 from __future__ import annotations
 
+import hashlib
 import logging
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -72,12 +74,21 @@ class Dataset:
         return load_object(self.root, self.record(obj_id))
 
 
+def cache_dir() -> Path:
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "artformer" / "retrieval"
+
+
 class Retriever:
     """Nearest training object by cosine similarity of pooled description embeddings
-    (every description of every length of every training record is a key)."""
+    (every description of every length of every training record is a key).
+
+    Embedding ~10k training descriptions costs minutes on a CPU, so the keys are cached in
+    ``~/.cache/artformer/retrieval/<sha256 of encoder + texts>.npz`` (``cache=False`` to skip).
+    """
 
     def __init__(self, data: Dataset, split: str = "train", encoder: str = "all-minilm-l6-v2",
-                 batch: int = 64):
+                 batch: int = 64, cache: bool = True):
         from model.encoders.text import get_text_encoder
         self.data = data
         self.encoder = get_text_encoder(encoder)
@@ -91,7 +102,21 @@ class Retriever:
         if not texts:
             raise ValueError(f"{data.root}: split {split!r} has no descriptions to retrieve from")
         self.owners = owners
-        self.keys = self._embed(texts, batch)                 # (T, D) unit rows
+        h = hashlib.sha256(encoder.encode())
+        for t in texts:
+            h.update(b"\0" + t.encode())
+        path = cache_dir() / f"{h.hexdigest()[:24]}.npz"
+        if cache and path.exists():
+            with np.load(path) as z:
+                self.keys = z["keys"]
+            log.info("retrieval keys from cache %s", path)
+        else:
+            self.keys = self._embed(texts, batch)             # (T, D) unit rows
+            if cache:
+                import io
+                buf = io.BytesIO()
+                np.savez(buf, keys=self.keys)
+                fmt.atomic_write_bytes(path, buf.getvalue())
 
     def _embed(self, texts: list[str], batch: int = 64) -> np.ndarray:
         out = []
