@@ -250,6 +250,13 @@ def test_parameters_are_validated_at_run_time(node_factory):
     fut = pc.get_parameters(["retention"])
     assert c.spin_until(fut.done, 10)
     assert fut.result().values[0].integer_value == 2
+    # a live change reaches the next request: package:// mesh URIs in the URDF
+    assert not set_("mesh_uri", "http://x").successful
+    assert set_("mesh_uri", "package://artformer_ros/objects").successful
+    res = c.wait_result(c.send_text("a cabinet"), 60)
+    assert res["status"] == "done"
+    urdf = open(res["urdf_path"]).read()
+    assert 'filename="package://artformer_ros/objects/meshes/' in urdf and "file://" not in urdf
     assert node.stop() == 0
 
 
