@@ -276,7 +276,7 @@ def test_invalid_start_parameters_exit_with_a_reason(tmp_path):
     assert "cannot start" in out.stderr and "Traceback" not in out.stderr
 
 
-def test_request_client_reports_errors_with_its_exit_code(node_factory, ros_context):
+def test_request_client_reports_errors_with_its_exit_code(node_factory, ros_context, tmp_path):
     node = node_factory().ready()
     env = {**os.environ, "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
     base = [sys.executable, "-m", "artformer_ros.request", "--timeout", "30"]
@@ -289,6 +289,17 @@ def test_request_client_reports_errors_with_its_exit_code(node_factory, ros_cont
     assert good.returncode == 0, good.stderr
     lines = dict(line.split(":", 1) for line in good.stdout.splitlines() if ":" in line)
     assert os.path.isfile(lines["URDF"].strip())
+    from PIL import Image as PILImage
+    png = tmp_path / "photo.png"
+    PILImage.new("RGBA", (40, 30), (200, 10, 10, 255)).save(png)
+    img = subprocess.run(base + ["--image", str(png), "--json"] + ros, capture_output=True,
+                         text=True, env=env, timeout=60)
+    assert img.returncode == 0, img.stderr
+    answer = json.loads(img.stdout)
+    assert answer["kind"] == "image" and answer["prompt"] == "<image 40x30>"
+    missing = subprocess.run(base + ["--image", str(tmp_path / "nope.png")] + ros,
+                             capture_output=True, text=True, env=env, timeout=60)
+    assert missing.returncode == 2 and "cannot read image" in missing.stderr
     assert node.stop() == 0
     none = subprocess.run(base[:-1] + ["3", "--text", "x"] + ros, capture_output=True,
                           text=True, env=env, timeout=60)
