@@ -105,3 +105,14 @@ def test_dataset_reader_and_stats(three, tmp_path):
     with pytest.raises(KeyError):
         PreparedDataset(out, "nope")
     json.dumps(ds.manifest)
+
+
+def test_only_closed_meshes_skip_the_shell():
+    import trimesh
+    from model.data.preprocess import is_closed_manifold
+    box = trimesh.creation.box([0.4, 0.3, 0.2])
+    assert is_closed_manifold(box)
+    holed = trimesh.Trimesh(box.vertices, box.faces[:-1], process=False)   # repairable, but not closed
+    assert not is_closed_manifold(holed)
+    inverted = trimesh.Trimesh(box.vertices, box.faces[:, ::-1], process=False)
+    assert not is_closed_manifold(inverted)

@@ -54,11 +54,12 @@ def _ok(man) -> bool:
     return man.status() == _mf().Error.NoError
 
 
-def to_manifold(mesh: MeshLike, *, fallback: str = "error"):
+def to_manifold(mesh: MeshLike, *, fallback: str = "error", repair: bool = True):
     """trimesh → manifold3d.Manifold.
 
     fallback: ``"error"`` (default) raises :class:`NotWatertightError` for meshes that are not
     closed manifolds after a light repair; ``"hull"`` uses the convex hull instead.
+    repair: False skips the light repair (the mesh must be closed as given).
     An empty mesh gives an empty Manifold (volume 0).
     """
     mf = _mf()
@@ -75,7 +76,7 @@ def to_manifold(mesh: MeshLike, *, fallback: str = "error"):
     man = _manifold_from_arrays(V, F)
     if _ok(man):
         return man
-    repaired = _repair(mesh)
+    repaired = _repair(mesh) if repair else None
     if repaired is not None:
         man = _manifold_from_arrays(repaired.vertices, repaired.faces)
         if _ok(man):

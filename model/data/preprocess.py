@@ -57,10 +57,10 @@ class PrepareConfig:
 # geometry
 # =============================================================================================
 def is_closed_manifold(mesh) -> bool:
+    """Closed, oriented 2-manifold as given (no repair), enclosing a positive volume."""
     from model.core import meshops
     try:
-        meshops.to_manifold(mesh)
-        return True
+        return meshops.to_manifold(mesh, repair=False).volume() > 0
     except meshops.NotWatertightError:
         return False
 
