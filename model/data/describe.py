@@ -89,14 +89,16 @@ def _motion(rng, label: str, types: list[str], n: int) -> str:
             _choice(rng, ["is fixed", "is rigidly attached", "does not move"])
     kinds = [t for t in types if t != "fixed"]
     if len(kinds) > 1:
-        names = " or ".join(_motion_word(rng, k) for k in kinds)
+        names = " or ".join(_motion_word(rng, k, label) for k in kinds)
         return ("can " if n > 1 else "can ") + names
     table = vocab.LABEL_MOTION_SYNONYMS.get((label, kinds[0]), vocab.MOTION_SYNONYMS[kinds[0]])
     phrase = _choice(rng, [p for p in table if p != "is hinged"] or list(table))
     return _pluralise_verb(phrase) if n > 1 else phrase
 
 
-def _motion_word(rng, jt: str) -> str:
+def _motion_word(rng, jt: str, label: str = "") -> str:
+    if jt == "revolute" and label in ("knob", "dial"):
+        return _choice(rng, ["turn to a stop", "turn within a range"])
     return {"revolute": _choice(rng, ["swing on a hinge", "pivot", "rotate on a hinge"]),
             "prismatic": _choice(rng, ["slide", "slide in and out", "translate"]),
             "continuous": _choice(rng, ["spin freely", "turn without limit", "rotate continuously"]),
@@ -122,7 +124,9 @@ def _group_np(rng, label: str, n: int, types: list[str]) -> str:
     moving = [t for t in types if t != "fixed"]
     if len(moving) == 1 and rng.random() < 0.5 and not any(w in noun for w in ("sliding", "hinged", "pull-out", "flip", "rotary")):
         adj = _choice(rng, list(vocab.LABEL_MOTION_ADJECTIVES.get((label, moving[0]),
-                                                                  vocab.MOTION_ADJECTIVES[moving[0]]))) + " "
+                                                                  vocab.MOTION_ADJECTIVES[moving[0]])))
+        # no "push push-buttons" / "swinging swing doors"
+        adj = "" if adj[:4] in noun or any(w[:4] in adj for w in noun.split()) else adj + " "
     return f"{_count(rng, n)} {adj}{noun}"
 
 
