@@ -116,3 +116,14 @@ def test_only_closed_meshes_skip_the_shell():
     assert not is_closed_manifold(holed)
     inverted = trimesh.Trimesh(box.vertices, box.faces[:, ::-1], process=False)
     assert not is_closed_manifold(inverted)
+
+
+def test_synth_command_categories(tmp_path, capsys):
+    from model.data.commands import main
+    from model.data.partnet import find_object_folders
+    assert main(["data", "synth", "--n", "3", "--out", str(tmp_path / "u"), "--workers", "1",
+                 "--categories", "USB"]) == 0
+    folders = find_object_folders(tmp_path / "u")
+    assert len(folders) == 3
+    assert all(json.loads((f / "meta.json").read_text())["model_cat"] == "USB" for f in folders)
+    assert main(["data", "synth", "--n", "1", "--out", str(tmp_path / "x"), "--categories", "Lamp"]) == 2

@@ -14,10 +14,20 @@ def _synth(argv: list[str]) -> int:
     ap.add_argument("--out", required=True, help="output folder (one sub-folder per object)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--categories", default="",
+                    help="comma-separated subset, e.g. Bottle,USB (default: all six with the standard weights)")
     args = ap.parse_args(argv)
-    from model.data.synth import synthesize_dataset
+    from model.data.synth import CATEGORY_WEIGHTS, SynthConfig, synthesize_dataset
+    cfg = SynthConfig(seed=args.seed)
+    if args.categories:
+        cats = [c.strip() for c in args.categories.split(",") if c.strip()]
+        unknown = [c for c in cats if c not in CATEGORY_WEIGHTS]
+        if unknown:
+            print(f"unknown categories {unknown}; choose from {sorted(CATEGORY_WEIGHTS)}", file=sys.stderr)
+            return 2
+        cfg.categories = {c: CATEGORY_WEIGHTS[c] for c in cats}
     t0 = time.time()
-    info = synthesize_dataset(args.out, args.n, args.seed, args.workers)
+    info = synthesize_dataset(args.out, args.n, args.seed, args.workers, config=cfg)
     print(f"synth: {args.n} objects in {args.out} ({time.time() - t0:.1f} s, "
           f"{len(info['errors'])} failed)")
     return 1 if info["errors"] else 0
