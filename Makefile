@@ -4,11 +4,18 @@ ENV := source scripts/env.sh &&
 PROMPT ?= a storage cabinet with two drawers and a door on the left
 OUT ?= out/demo
 
-.PHONY: setup demo test test-all bench clean
+.PHONY: setup demo generate test test-all clean
 setup:
 	bash scripts/setup.sh
 
+ARGS ?=
+
+# Main job: start the ROS 2 node on the shipped model, send PROMPT, print URDF + mesh paths.
 demo: setup
+	$(ENV) python -m artformer_ros.demo "$(PROMPT)" --output-dir $(OUT) $(ARGS)
+
+# The same job without ROS.
+generate: setup
 	$(ENV) artformer generate "$(PROMPT)" --out $(OUT)
 
 test: setup
