@@ -38,7 +38,9 @@ log = logging.getLogger(__name__)
 
 CATEGORY_WEIGHTS: dict[str, float] = {"StorageFurniture": 0.34, "Safe": 0.12, "Oven": 0.14,
                                       "WashingMachine": 0.14, "Bottle": 0.13, "USB": 0.13}
-GENERATOR_VERSION = "synth-2"   # synth-2: strict overlap test (≤ 1 mm³ and ≤ 0.2 mm thick)
+# synth-2: strict overlap test (≤ 1 mm³ and ≤ 0.2 mm thick); synth-3: legs and top overhangs on
+# storage furniture, shaker (recessed-panel) doors, side-hinged oven doors.
+GENERATOR_VERSION = "synth-3"
 
 
 @dataclass
@@ -260,8 +262,12 @@ def _drawer(rng, b: _Builder, body: int, c: _Cell, D: float, back: float, handle
 
 
 def _door(rng, b: _Builder, body: int, c: _Cell, D: float, handle_style: Optional[str], g: float,
-          max_angle: float, thickness: Optional[float] = None, label: str = "door") -> int:
-    """Inset panel flush with the front, hinged on c.side; handle on the free edge."""
+          max_angle: float, thickness: Optional[float] = None, label: str = "door",
+          style: str = "flat") -> int:
+    """Inset panel flush with the front, hinged on c.side; handle on the free edge.
+
+    style "shaker": a shallow recess in the front face inside a frame wide enough to carry
+    the handle (the envelope, hence the motion check, is unchanged)."""
     fx = D / 2
     y0, y1, z0, z1 = c.y0 + g, c.y1 - g, c.z0 + g, c.z1 - g
     td = thickness or _u(rng, 0.015, 0.025)
@@ -276,6 +282,14 @@ def _door(rng, b: _Builder, body: int, c: _Cell, D: float, handle_style: Optiona
     w, h = y1 - y0, z1 - z0
     man = meshops.box([td, w, h], (fx - td / 2, (y0 + y1) / 2, (z0 + z1) / 2))
     cy, cz = (y0 + y1) / 2, (z0 + z1) / 2
+    if style == "shaker":
+        edge = min(0.04, (w if c.side in ("left", "right") else h) * 0.15)
+        m = edge + 0.025                       # frame width: the handle stays on the frame
+        if w - 2 * m > 0.05 and h - 2 * m > 0.05:
+            depth = td * 0.35
+            man = man - meshops.box([depth + 0.002, w - 2 * m, h - 2 * m], (fx - depth / 2 + 0.001, cy, cz))
+        else:
+            style = "flat"
     if c.side == "left":      # viewer's left = -y edge
         origin, axis, hpos, along = [fx, y0, cz], [0, 0, -1], (y1 - min(0.04, w * 0.15), cz), "z"
     elif c.side == "right":
@@ -284,7 +298,8 @@ def _door(rng, b: _Builder, body: int, c: _Cell, D: float, handle_style: Optiona
         origin, axis, hpos, along = [fx, cy, z0], [0, 1, 0], (cy, z1 - min(0.04, h * 0.15)), "y"
     else:  # top
         origin, axis, hpos, along = [fx, cy, z1], [0, -1, 0], (cy, z0 + min(0.04, h * 0.15)), "y"
-    d = b.add(label, man, body, _rev(origin, axis, max_angle), side=c.side, band=c.band, col=c.col)
+    d = b.add(label, man, body, _rev(origin, axis, max_angle), side=c.side, band=c.band, col=c.col,
+              panel=style)
     if handle_style:
         span = h if along == "z" else w
         L = max(0.04, span * _u(rng, 0.2, 0.45))
@@ -349,7 +364,21 @@ def _gen_storage(rng, b: _Builder) -> None:
             cav.append(_Cell(prev.y0, c.y1, c.z0, c.z1, "door", "double", c.band))
         else:
             cav.append(c)
-    body = b.add("body", _carcass(W, D, H, t, cav, back, plinth))
+    body_man = _carcass(W, D, H, t, cav, back, plinth)
+    base = "plinth" if plinth > 0 else "flush"
+    if plinth > 0.03 and rng.random() < 0.5:      # four corner legs instead of a solid plinth
+        lw = min(_u(rng, 0.03, 0.06), W / 4, D / 4)
+        body_man = body_man - meshops.union_manifolds([
+            meshops.box([D - 2 * lw, W + 0.02, plinth + 0.01], (0.0, 0.0, plinth / 2 - 0.005)),
+            meshops.box([D + 0.02, W - 2 * lw, plinth + 0.01], (0.0, 0.0, plinth / 2 - 0.005))])
+        base = "legs"
+    top = "flush"
+    if rng.random() < 0.4:                         # a top slab overhanging the sides and back
+        os_, ob, tt = _u(rng, 0.005, 0.03), _u(rng, 0.0, 0.02), _u(rng, 0.015, 0.03)
+        body_man = body_man + meshops.box([D + ob, W + 2 * os_, tt], (-ob / 2, 0.0, H + tt / 2 - 1e-4))
+        top = "overhang"
+    body = b.add("body", body_man)
+    door_style = _pick(rng, ["flat", "shaker"])
     n_moving = 0
     for c in cells:
         if n_moving >= 16:
@@ -365,10 +394,10 @@ def _gen_storage(rng, b: _Builder) -> None:
                 limit = math.radians(_u(rng, 60, 90))
             else:
                 limit = math.radians(_u(rng, 60, 95))
-            _door(rng, b, body, c, D, handle_style, g, limit)
+            _door(rng, b, body, c, D, handle_style, g, limit, style=door_style)
             n_moving += 1
     b.meta.update(size=[D, W, H], layout=[c.kind for c in cells], handle_style=handle_style,
-                  shelves=sum(c.kind == "open" for c in cells))
+                  shelves=sum(c.kind == "open" for c in cells), base=base, top=top, door_style=door_style)
 
 
 def _gen_safe(rng, b: _Builder) -> None:
@@ -441,13 +470,15 @@ def _gen_oven(rng, b: _Builder) -> None:
     drawer_h = _u(rng, 0.1, 0.16) if drawer else 0.0
     z_cav0 = t + (drawer_h + t if drawer else 0.0)
     z_cav1 = H - panel_h
-    cells = [_Cell(-W / 2 + t, W / 2 - t, z_cav0, z_cav1, "door", "bottom", 1)]
+    side_hinged = rng.random() < 0.25              # wall-oven style door on a vertical hinge
+    cells = [_Cell(-W / 2 + t, W / 2 - t, z_cav0, z_cav1, "door",
+                   _pick(rng, ["left", "right"]) if side_hinged else "bottom", 1)]
     if drawer:
         cells.append(_Cell(-W / 2 + t, W / 2 - t, t, t + drawer_h, "drawer", band=0))
     body_man = _carcass(W, D, H, t, cells, t)
     fx = D / 2
     # tray ledges on the cavity walls, and the trays on them
-    n_trays = int(rng.choice([0, 1, 1, 2]))
+    n_trays = int(rng.choice([0, 1, 1, 2])) if not side_hinged else 0
     cav_h = z_cav1 - z_cav0
     tray_specs = []
     for k in range(n_trays):
@@ -489,11 +520,15 @@ def _gen_oven(rng, b: _Builder) -> None:
     for bman, y in btn_specs:
         b.add("button", bman, body, _pri([fx, y, pz], [-1, 0, 0], 0.003), style="push")
     handle_style = _pick(rng, ["bar", "square", "edge"])
-    door = _door(rng, b, body, cells[0], D, None, g, math.radians(_u(rng, 70, 90)),
-                 thickness=_u(rng, 0.025, 0.04))
-    dz1 = z_cav1 - g
-    hman = _handle(rng, handle_style, fx, (0.0, dz1 - 0.035), "y", (W - 2 * t) * _u(rng, 0.6, 0.85))
-    b.add("handle", hman, door, None, style=handle_style, on="door")
+    if side_hinged:
+        _door(rng, b, body, cells[0], D, handle_style, g, math.radians(_u(rng, 80, 110)),
+              thickness=_u(rng, 0.025, 0.04))
+    else:
+        door = _door(rng, b, body, cells[0], D, None, g, math.radians(_u(rng, 70, 90)),
+                     thickness=_u(rng, 0.025, 0.04))
+        dz1 = z_cav1 - g
+        hman = _handle(rng, handle_style, fx, (0.0, dz1 - 0.035), "y", (W - 2 * t) * _u(rng, 0.6, 0.85))
+        b.add("handle", hman, door, None, style=handle_style, on="door")
     if drawer:
         _drawer(rng, b, body, cells[1], D, t, handle_style, g)
     # trays: a frame of bars sitting on the ledges, sliding out
