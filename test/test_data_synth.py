@@ -97,6 +97,12 @@ def test_variety_of_layouts_and_counts():
     assert {"left", "right"} <= sides
     styles = {m.get("style") for o in objs for m in o.metadata["parts"].values()} - {None}
     assert len(styles & set(synth.HANDLE_STYLES)) >= 3
+    assert {o.metadata["base"] for o in objs} >= {"flush", "plinth", "legs"}
+    assert {o.metadata["top"] for o in objs} == {"flush", "overhang"}
+    assert {o.metadata["door_style"] for o in objs} == {"flat", "shaker"}
+    ovens = [synth.generate_object(seed=1, index=i, category="Oven") for i in range(12)]
+    door_axes = {tuple(np.abs(o.parts[o.index_of("door_0")].joint.axis)) for o in ovens}
+    assert door_axes == {(0.0, 1.0, 0.0), (0.0, 0.0, 1.0)}        # drop-down and side-hinged
     # ≥ 12 moving parts occur (safes with keypads, big drawer grids)
     big = [synth.generate_object(seed=0, index=i, category="Safe") for i in range(40)]
     assert max(max(moving), max(len(o.movable_parts()) for o in big)) >= 12
