@@ -52,7 +52,8 @@ def _plt():
 
 def _bars(ax, names, vals, title, anchors=None, ylabel=""):
     xs = list(range(len(names)))
-    ax.bar(xs, [0 if v is None else v for v in vals], color="#4c72b0")
+    bars = ax.bar(xs, [0 if v is None else v for v in vals], color="#4c72b0")
+    ax.bar_label(bars, labels=["" if v is None else f"{v:.3g}" for v in vals], fontsize=6)
     for x, v in zip(xs, vals):
         if v is None:
             ax.text(x, 0, "n/a", ha="center", va="bottom", fontsize=7)
