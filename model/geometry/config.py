@@ -109,7 +109,7 @@ def _presets() -> dict[str, Preset]:
     small = Preset(
         sdf=SDFConfig(),
         prior=PriorConfig(),
-        sdf_train=TrainConfig(steps=2400, batch_size=16, lr=2e-3, warmup=100, n_points=512,
+        sdf_train=TrainConfig(steps=3600, batch_size=16, lr=2e-3, warmup=100, n_points=512,
                               n_queries=2048, val_every=200, val_parts=96, ckpt_every=200),
         prior_train=TrainConfig(steps=4000, batch_size=128, lr=1e-3, warmup=200,
                                 val_every=500, val_parts=512, ckpt_every=500),

@@ -122,7 +122,9 @@ def marching_cubes(values: np.ndarray, bound: float = 1.0) -> MeshResult:
     verts, faces, _, _ = measure.marching_cubes(padded, level=0.0, spacing=(h, h, h),
                                                 gradient_direction="descent")
     verts = verts - (bound + h)
-    mesh = trimesh.Trimesh(verts, faces, process=True)
+    # skimage already shares vertices between faces; trimesh's processing (vertex merging)
+    # would only cost time (~40-100 ms for a 45k-face part)
+    mesh = trimesh.Trimesh(verts, faces, process=False)
     return MeshResult(mesh, "ok", 0)
 
 
