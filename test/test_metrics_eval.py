@@ -7,6 +7,12 @@ import pytest
 from test_metrics_common import build_prepared, make_tiny_checkpoints
 
 
+@pytest.fixture(autouse=True)
+def _private_cache(tmp_path, monkeypatch):
+    """Retrieval keys are cached under XDG_CACHE_HOME: keep the tests' out of ~/.cache."""
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+
+
 @pytest.fixture(scope="module")
 def prepared(tmp_path_factory):
     return build_prepared(tmp_path_factory.mktemp("prepared"))
