@@ -25,6 +25,7 @@ class GenerationConfig:
     temperature: float = 0.5           # Gumbel-softmax temperature at generation
     geometry: str = "generate"         # generate | retrieve
     mesh_format: str = "obj"           # obj | stl | glb
+    collision: str = "auto"            # auto | cells | vhacd | hull | none (model.export.collision)
     device: str = "cpu"
     threads: int = 2
     max_nodes: int = 32

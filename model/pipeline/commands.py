@@ -20,6 +20,8 @@ def _model_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--geometry", choices=("generate", "retrieve"), default="generate",
                    help="diffuse new part shapes, or retrieve the nearest training part")
     p.add_argument("--format", dest="mesh_format", choices=("obj", "stl", "glb"), default="obj")
+    p.add_argument("--collision", choices=("auto", "cells", "vhacd", "hull", "none"),
+                   default="auto", help="collision geometry per link (default auto)")
     p.add_argument("--threads", type=int, default=2, help="torch CPU threads (2)")
     p.add_argument("--no-preview", action="store_true", help="skip preview.png")
     p.add_argument("--mesh-uri", default="file",
@@ -32,7 +34,7 @@ def _config(a):
     from model.pipeline.api import GenerationConfig
     return GenerationConfig(checkpoint=a.checkpoint, resolution=a.resolution, steps=a.steps,
                             guidance=a.guidance, geometry=a.geometry, mesh_format=a.mesh_format,
-                            threads=a.threads)
+                            collision=a.collision, threads=a.threads)
 
 
 def _report(outs, results, as_json: bool) -> None:

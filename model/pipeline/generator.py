@@ -252,7 +252,7 @@ class Generator:
     # -- export -----------------------------------------------------------------------------
     def export(self, result: GeneratedObject, out_dir: Union[str, os.PathLike], *,
                preview: bool = True, mesh_uri: str = "file") -> ExportResult:
-        from model.export import export_object
+        from model.export import CollisionConfig, export_object
 
         t = time.perf_counter()
         prov = {"prompt": result.prompt, "seed": result.seed,
@@ -260,7 +260,8 @@ class Generator:
                           for k, p in self.loaded.paths.items() if p},
                 "config": asdict(self.config)}
         out = export_object(result.obj, out_dir, mesh_format=self.config.mesh_format,
-                            provenance=prov, preview=preview, mesh_uri=mesh_uri)
+                            provenance=prov, preview=preview, mesh_uri=mesh_uri,
+                            collision=CollisionConfig(method=self.config.collision))
         result.timings["export"] = time.perf_counter() - t
         return out
 
@@ -274,6 +275,8 @@ def validate_config(cfg: GenerationConfig) -> None:
         (cfg.temperature > 0, f"temperature must be > 0, got {cfg.temperature}"),
         (cfg.geometry in ("generate", "retrieve"), f"geometry must be generate|retrieve, got {cfg.geometry!r}"),
         (cfg.mesh_format in ("obj", "stl", "glb"), f"mesh_format must be obj|stl|glb, got {cfg.mesh_format!r}"),
+        (cfg.collision in ("auto", "cells", "vhacd", "hull", "none"),
+         f"collision must be auto|cells|vhacd|hull|none, got {cfg.collision!r}"),
         (cfg.device == "cpu", f"device {cfg.device!r} is not supported; this build runs on the CPU"),
         (1 <= cfg.threads <= 64, f"threads must be in [1, 64], got {cfg.threads}"),
         (1 <= cfg.max_nodes <= 64, f"max_nodes must be in [1, 64], got {cfg.max_nodes}"),
