@@ -83,34 +83,39 @@ class ImageConditions:
         return tok, torch.ones(tok.shape[:2], dtype=torch.bool)
 
 
-def _image_batch(items, pairs, views, geo_shape, conds: ImageConditions):
+def _image_batch(items, groups, views, geo_shape, conds: ImageConditions, label_cs=None,
+                 count_labels=None):
+    """groups: (item index, rounds), one view per group shared by its rounds.
+    -> batch, targets, cond tokens (U, 49, 1280), cond mask (U, 49), cond_index (B,)."""
     from model.articulation.data import collate, round_sample
-    samples = [round_sample(items[i], k) for i, k in pairs]
-    batch, targets = collate(samples, geo_shape)
-    cond, cmask = conds.batch([items[i].id for i, _ in pairs], views)
-    return batch, targets, cond, cmask
+    samples, index = [], []
+    for u, (i, rounds) in enumerate(groups):
+        for k in rounds:
+            samples.append(round_sample(items[i], k))
+            index.append(u)
+    batch, targets = collate(samples, geo_shape, label_cs, count_labels)
+    cond, cmask = conds.batch([items[i].id for i, _ in groups], views)
+    return batch, targets, cond, cmask, torch.tensor(index)
 
 
 @torch.no_grad()
 def evaluate_image_loss(net, items, geo_shape, conds: ImageConditions, tc, n_batches: int,
-                        seed: int = 1234) -> dict:
-    """Mean loss terms over a fixed subset of (object, round, view) samples (no dropout)."""
-    from model.articulation.train import all_samples
+                        seed: int = 1234, label_cs=None) -> dict:
+    """Mean loss terms over a fixed subset of (object, rounds, view) samples (no dropout)."""
+    from model.articulation.data import group_rounds
     was = net.training
     net.eval()
     rng = np.random.default_rng(seed)
-    pairs = all_samples(items)
-    order = rng.permutation(len(pairs))
+    batches = group_rounds(items, rng.permutation(len(items)), tc.batch_size,
+                           tc.rounds_per_object, rng)
     sums: dict[str, float] = {}
     nb = 0
-    for b in range(n_batches):
-        sel = order[b * tc.batch_size:(b + 1) * tc.batch_size]
-        if len(sel) == 0:
-            break
-        views = [int(j) % conds.views for j in sel]
-        batch, targets, cond, cmask = _image_batch(items, [pairs[j] for j in sel], views,
-                                                   geo_shape, conds)
-        _, L = net(batch, cond, cmask, "image", targets=targets, weights=asdict(tc))
+    for groups in batches[:n_batches]:
+        views = [int(i) % conds.views for i, _ in groups]
+        batch, targets, cond, cmask, idx = _image_batch(items, groups, views, geo_shape, conds,
+                                                        label_cs, net.cfg.count_labels)
+        _, L = net(batch, cond, cmask, "image", cond_index=idx, targets=targets,
+                   weights=asdict(tc))
         for k, v in L.items():
             sums[k] = sums.get(k, 0.0) + float(v)
         nb += 1
@@ -131,7 +136,8 @@ def train_image(rc: ImageRunConfig) -> Path:
     from model.articulation.checkpoint import save_checkpoint
     from model.articulation.config import ArticulationConfig
     from model.articulation.network import ArticulationTransformer
-    from model.articulation.train import _CodebookView, all_samples, lr_at, prepare_data
+    from model.articulation.data import group_rounds
+    from model.articulation.train import _CodebookView, label_cs_normalised, lr_at, prepare_data
     from model.encoders.image import ImageEncoder, ImageEncoderConfig
 
     from .features import ViewFeatures, build_feature_cache
@@ -145,13 +151,24 @@ def train_image(rc: ImageRunConfig) -> Path:
     out.mkdir(parents=True, exist_ok=True)
     t_start = time.time()
     init = None
+    tg = rc.targets
+    same_targets = True
     if ic.init and ic.init.lower() != "none":
         init = _init_from(ic.init)
         cfg = ArticulationConfig.from_dict(init["config"])
         tc.text_encoder = init.get("text_encoder") or tc.text_encoder
+        # a start checkpoint trained on other targets (e.g. stand-ins before the prior existed)
+        # keeps its trunk; c_s / codebook heads and the label table follow the new targets
+        same_targets = init.get("targets") == getattr(tg, "name", None) and \
+            int(tg.cs_dim) == cfg.cs_dim and int(tg.num_codebooks) == cfg.num_codebooks and \
+            int(tg.codebook_size) == cfg.codebook_size
+        if not same_targets:
+            log.warning("init %s was trained on %r targets, this run uses %r: its label table "
+                        "is rebuilt and mismatched heads are re-initialised", ic.init,
+                        init.get("targets"), getattr(tg, "name", None))
     else:
         cfg = rc.net
-        tg = rc.targets
+    if init is None or not same_targets:
         cfg.cs_dim = int(tg.cs_dim)
         cfg.num_codebooks, cfg.codebook_size = int(tg.num_codebooks), int(tg.codebook_size)
     if cfg.cond_dims.get("image") != 1280:
@@ -159,7 +176,7 @@ def train_image(rc: ImageRunConfig) -> Path:
     data = prepare_data(rc.data, _CodebookView(rc.targets, cfg), predict_z=cfg.predict_z,
                         cache_dir=str(out / "cache"),
                         stats=None if init is None else init["stats"],
-                        label_table=None if init is None else init["label_table"])
+                        label_table=None if init is None or not same_targets else init["label_table"])
     rmanifest = load_render_manifest(rc.renders)
     tr_all, va_all = data.items["train"], data.items.get("val") or []
     ids = [it.id for it in tr_all + va_all]
@@ -181,11 +198,18 @@ def train_image(rc: ImageRunConfig) -> Path:
     log.info("data %s: %d train / %d val objects x %d views; features %.0f s",
              data.data_version, len(tr), len(va), feats.views, t_feats)
 
+    if cfg.child_counts and not cfg.count_labels:
+        cfg.count_labels = sorted(set(data.label_table["labels"]))
     torch.manual_seed(tc.seed)
     net = ArticulationTransformer(cfg)
     if init is not None:
         sd = {k: v.float() if v.is_floating_point() else v for k, v in init["state_dict"].items()}
-        net.load_state_dict(sd)
+        own = net.state_dict()
+        skip = [k for k, v in sd.items() if k not in own or own[k].shape != v.shape]
+        if skip:
+            log.warning("init: %d tensors do not fit and stay freshly initialised: %s",
+                        len(skip), skip[:6])
+        net.load_state_dict({k: v for k, v in sd.items() if k not in skip}, strict=False)
         if init.get("condition") == "image" and init.get("image_encoder", {}).get("tail"):
             encoder.load_tail_state_dict(init["image_encoder"]["tail"])
     groups = [{"params": list(net.parameters()), "lr_mult": 1.0}]
@@ -213,8 +237,8 @@ def train_image(rc: ImageRunConfig) -> Path:
                         seed=tc.seed, command=rc.command, step=step, train_config=asdict(tc),
                         extra=extra, half=half)
 
-    pairs = all_samples(tr)
-    perm, cursor = rng.permutation(len(pairs)), 0
+    label_cs = label_cs_normalised(data)
+    epoch: list = []
     net.train()
     encoder.train()
     budget = tc.max_minutes * 60.0
@@ -227,20 +251,22 @@ def train_image(rc: ImageRunConfig) -> Path:
     t_loop = time.time()
     val_batches = tc.val_batches
     while step < tc.max_steps:
-        if budget and time.time() - t_loop > budget:
+        elapsed = time.time() - t_loop
+        if budget and elapsed > budget:
             log.info("wall-clock budget of %.1f min reached at step %d", tc.max_minutes, step)
             break
-        if cursor + tc.batch_size > len(perm):
-            perm, cursor = rng.permutation(len(pairs)), 0
-        sel = perm[cursor:cursor + tc.batch_size]
-        cursor += tc.batch_size
-        views = rng.integers(0, feats.views, len(sel)).tolist()
-        batch, targets, cond, cmask = _image_batch(tr, [pairs[j] for j in sel], views,
-                                                   data.geo_shape, conds)
-        drop = torch.from_numpy(rng.random(len(sel)) < tc.cond_dropout)
+        if not epoch:
+            epoch = group_rounds(tr, rng.permutation(len(tr)), tc.batch_size,
+                                 tc.rounds_per_object, rng)
+        groups = epoch.pop()
+        views = rng.integers(0, feats.views, len(groups)).tolist()
+        batch, targets, cond, cmask, idx = _image_batch(tr, groups, views, data.geo_shape, conds,
+                                                        label_cs, cfg.count_labels)
+        drop = torch.from_numpy(rng.random(len(groups)) < tc.cond_dropout)[idx]
         for g in opt.param_groups:
-            g["lr"] = lr_at(step, tc) * g["lr_mult"]
-        _, L = net(batch, cond, cmask, "image", drop=drop, targets=targets, weights=asdict(tc))
+            g["lr"] = lr_at(step, tc, elapsed) * g["lr_mult"]
+        _, L = net(batch, cond, cmask, "image", drop=drop, cond_index=idx, targets=targets,
+                   weights=asdict(tc))
         opt.zero_grad(set_to_none=True)
         L["total"].backward()
         torch.nn.utils.clip_grad_norm_(net.parameters(), tc.grad_clip)
@@ -254,10 +280,14 @@ def train_image(rc: ImageRunConfig) -> Path:
         if bar is not None:
             bar.update(1)
             bar.set_postfix(loss=f"{run['total']:.3f}", end=f"{run['end']:.3f}")
+        elif step % 25 == 0:
+            log.info("step %d loss %.4f (end %.4f art %.4f jt %.4f cs %.4f)", step, run["total"],
+                     run["end"], run["art"], run["jt"], run["cs"])
         if step % tc.val_every == 0:
             rec = {"step": step, "train": dict(run), "time_min": (time.time() - t_loop) / 60}
             if va:
-                rec["val"] = evaluate_image_loss(net, va, data.geo_shape, conds, tc, val_batches)
+                rec["val"] = evaluate_image_loss(net, va, data.geo_shape, conds, tc, val_batches,
+                                                 label_cs=label_cs)
             history.append(rec)
             log.info("step %d train %.4f val %s", step, run["total"],
                      f"{rec['val']['total']:.4f}" if va else "-")
@@ -267,7 +297,8 @@ def train_image(rc: ImageRunConfig) -> Path:
         bar.close()
     final = {"step": step, "train": dict(run), "time_min": (time.time() - t_loop) / 60}
     if va:
-        final["val"] = evaluate_image_loss(net, va, data.geo_shape, conds, tc, val_batches)
+        final["val"] = evaluate_image_loss(net, va, data.geo_shape, conds, tc, val_batches,
+                                           label_cs=label_cs)
     history.append(final)
     save(out / "last.pt", step)
     save(out / "image.pt", step)
