@@ -1,10 +1,10 @@
 """Fast meshing of SDFs: coarse-to-fine evaluation + marching cubes (DESIGN §4.3).
 
 The SDF is evaluated on a coarse vertex grid over [-bound, bound]^3, then the resolution is
-doubled level by level; at each level only the vertices of cells that lie near the surface
-at the previous level (|sdf| < band x cell diagonal, or a sign change, dilated by one cell)
-are evaluated, and the others take the trilinear upsampling of the previous level (far from
-the surface only their sign matters). ``skimage.measure.marching_cubes(level=0)`` then runs
+doubled level by level: the previous level is upsampled trilinearly and only the vertices of
+cells that the upsampled field puts near the surface (|sdf| < band x half a cell diagonal,
+or a sign change; optionally dilated by one cell) are evaluated; the others keep the
+interpolated value (far from the surface only its sign matters). ``skimage.measure.marching_cubes(level=0)`` then runs
 on the finest grid, padded with one layer of "outside" so every surface is closed.
 
 A part whose grid has no zero crossing gets an empty mesh and ``status`` "empty" (all
@@ -65,23 +65,21 @@ def evaluate_grid(sdf_fn: SdfFn, batch: int, resolution: int = 64, *, bound: flo
             mask = torch.ones(batch, n + 1, n + 1, n + 1, dtype=torch.bool)
             values = torch.zeros(batch, n + 1, n + 1, n + 1)
         else:
-            m_prev = levels[li - 1]
-            h_prev = 2 * bound / m_prev
-            # cells of the previous level near the surface (B, m, m, m)
-            corners = values.unsqueeze(1)
-            vmin = -F.max_pool3d(-corners.abs(), 2, stride=1).squeeze(1)
-            vmax = F.max_pool3d(corners, 2, stride=1).squeeze(1)
-            vlo = -F.max_pool3d(-corners, 2, stride=1).squeeze(1)
-            # an exact SDF has a corner within half a cell diagonal of any surface point in
-            # the cell; ``band`` > 1 leaves room for a learned, not quite metric, SDF
-            near = ((vmin < band * h_prev * 3 ** 0.5 / 2) | ((vmax > 0) & (vlo < 0))).unsqueeze(1)
-            if dilate:
-                near = F.max_pool3d(near.float(), 3, stride=1, padding=1) > 0
-            cells = near.repeat_interleave(2, 2).repeat_interleave(2, 3).repeat_interleave(2, 4)
-            # a fine vertex is needed if any of its (up to 8) cells is active
-            mask = (F.max_pool3d(F.pad(cells.float(), (1, 1, 1, 1, 1, 1)), 2, stride=1) > 0).squeeze(1)
+            h = 2 * bound / n
             values = F.interpolate(values.unsqueeze(1), size=(n + 1,) * 3, mode="trilinear",
                                    align_corners=True).squeeze(1)
+            # cells of this level near the surface according to the upsampled previous level:
+            # an exact SDF has a corner within half a cell diagonal of any surface point in
+            # the cell; ``band`` > 1 leaves room for interpolation error and a learned SDF
+            corners = values.unsqueeze(1)                                  # (B, 1, n+1, n+1, n+1)
+            vmin = -F.max_pool3d(-corners.abs(), 2, stride=1)
+            vmax = F.max_pool3d(corners, 2, stride=1)
+            vlo = -F.max_pool3d(-corners, 2, stride=1)
+            near = (vmin < band * h * 3 ** 0.5 / 2) | ((vmax > 0) & (vlo < 0))   # (B, 1, n, n, n)
+            if dilate:
+                near = F.max_pool3d(near.float(), 3, stride=1, padding=1) > 0
+            # a vertex is needed if any of its (up to 8) cells is near
+            mask = (F.max_pool3d(F.pad(near.float(), (1, 1, 1, 1, 1, 1)), 2, stride=1) > 0).squeeze(1)
             ex = torch.zeros(batch, n + 1, n + 1, n + 1, dtype=torch.bool)
             ex[:, ::2, ::2, ::2] = exact
             mask &= ~ex
