@@ -179,3 +179,17 @@ def test_child_count_features():
     assert c[0, 1].tolist() == [2, 2, 0], "root: two drawers"
     assert c[0, 2].tolist() == [1, 0, 1], "first drawer: one handle"
     assert c[0, 3].tolist() == [0, 0, 0] and c[0, 4].tolist() == [0, 0, 0]
+
+
+def test_plan_head_loss():
+    torch.manual_seed(0)
+    cfg, _ = preset("tiny", count_labels=["drawer", "handle"])
+    net = ArticulationTransformer(cfg)
+    tb = _tree_batch([[-1, 0, 0, 1]])
+    B, N = tb.mask.shape
+    t = Targets(torch.zeros(B, N), torch.zeros(B, N, 16), torch.zeros(B, N, dtype=torch.long),
+                torch.zeros(B, N, 64), child_P=torch.full((B, N, 4, 16), 1 / 16),
+                plan_counts=torch.tensor([[2, 1]]))
+    out, L = net(tb, torch.randn(1, 3, 384), torch.ones(1, 3, dtype=torch.bool), targets=t)
+    assert out["plan"].shape == (1, 2, cfg.plan_max_count + 1)
+    assert "plan" in L and torch.isfinite(L["plan"])

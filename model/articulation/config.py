@@ -35,6 +35,8 @@ class ArticulationConfig:
                                   # total and per label (a decision beyond the paper: exact
                                   # counts are the hardest part of the structure)
     count_labels: list = field(default_factory=list)   # label vocabulary of those counts
+    plan_head: bool = True        # auxiliary head on START: parts per label of the object
+    plan_max_count: int = 20
     cond_dims: dict = field(default_factory=lambda: {"text": 384, "image": 1280})
     cond_layers: int = 1          # post-encoder layers over the condition tokens
     num_codebooks: int = 4        # codebook logits P: (num_codebooks, codebook_size)
@@ -53,6 +55,8 @@ class ArticulationConfig:
         if unknown:
             raise ValueError(f"unknown ArticulationConfig fields {sorted(unknown)}: the "
                              f"checkpoint was written by a different code version")
+        d = dict(d)
+        d.setdefault("plan_head", False)   # checkpoints from before the plan head
         return cls(**d)
 
 
@@ -81,6 +85,7 @@ class TrainConfig:
     w_p: float = 2.0
     w_z: float = 1.0              # ablation no_shape_prior: MSE on (normalised) z
     w_label: float = 1.0          # auxiliary: CE of the nearest-c_s label decision
+    w_plan: float = 1.0           # auxiliary: CE of the START plan head (parts per label)
     rounds_per_object: int = 4    # decoding rounds drawn per object per step (they share
                                   # one encoded description)
 

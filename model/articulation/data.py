@@ -126,6 +126,7 @@ def collate(samples: list[dict], geo_shape: tuple[int, ...],
     ctok = np.zeros((B, N, TOKEN_DIM), np.float32)
     cjt = np.zeros((B, N), np.int64)
     clab = np.full((B, N), -1, np.int64)
+    plan = np.zeros((B, max(len(count_labels or []), 1)), np.int64)
     ccs = np.zeros((B, N, cs_dim), np.float32)
     cgeo = np.zeros((B, N) + tuple(geo_shape), np.float32)
     if len(geo_shape) == 2:
@@ -140,6 +141,9 @@ def collate(samples: list[dict], geo_shape: tuple[int, ...],
         dep[b, :n] = s["depth"]
         mask[b, :n] = True
         labs[b, 1:n] = [cidx.get(it.labels[j], -1) for j in pr]
+        for lab in it.labels:
+            if lab in cidx:
+                plan[b, cidx[lab]] += 1
         t = s["target"]
         sel = np.nonzero(t >= 0)[0]
         has[b, sel] = 1.0
@@ -153,7 +157,8 @@ def collate(samples: list[dict], geo_shape: tuple[int, ...],
     is_z = len(geo_shape) == 1
     targets = Targets(T(has), T(ctok), T(cjt), T(ccs),
                       child_P=None if is_z else T(cgeo), child_z=T(cgeo) if is_z else None,
-                      child_label=T(clab) if label_cs is not None else None, label_cs=label_cs)
+                      child_label=T(clab) if label_cs is not None else None, label_cs=label_cs,
+                      plan_counts=T(plan) if count_labels else None)
     return batch, targets
 
 

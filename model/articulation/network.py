@@ -67,6 +67,8 @@ class Targets:
     child_z: Optional[torch.Tensor] = None
     child_label: Optional[torch.Tensor] = None   # (B, N) long: row of label_cs, -1 = none
     label_cs: Optional[torch.Tensor] = None      # (T, 64) c_s of every training label
+    plan_counts: Optional[torch.Tensor] = None   # (B, len(count_labels)) parts per label in
+                                                 # the whole object (auxiliary plan head)
 
 
 def _mlp(d_in: int, d_hidden: int, d_out: int) -> nn.Sequential:
@@ -215,6 +217,10 @@ class ArticulationTransformer(nn.Module):
         self.head_cs = _mlp(d, d, cfg.cs_dim)
         out_geo = cfg.z_dim if cfg.predict_z else cfg.num_codebooks * cfg.codebook_size
         self.head_geo = _mlp(d, d, out_geo)
+        # auxiliary "plan" head on START: how many parts of each label the whole object has
+        # (trains the cross-attention to read counts from the condition; not used to decode)
+        self.head_plan = (nn.Linear(d, len(cfg.count_labels) * (cfg.plan_max_count + 1))
+                          if cfg.plan_head and cfg.count_labels else None)
 
     def num_params(self) -> int:
         return sum(p.numel() for p in self.parameters())
@@ -283,6 +289,9 @@ class ArticulationTransformer(nn.Module):
             geo = geo.view(*x.shape[:2], self.cfg.num_codebooks, self.cfg.codebook_size)
         out = {"end": self.head_end(x).squeeze(-1), "art": self.head_art(x),
                "jt": self.head_jt(x), "cs": self.head_cs(x), "geo": geo}
+        if self.head_plan is not None:
+            out["plan"] = self.head_plan(x[:, 0]).view(x.shape[0], len(self.cfg.count_labels),
+                                                       self.cfg.plan_max_count + 1)
         if targets is None:
             return out, None
         return out, self.losses(out, batch.mask, targets, weights or {})
@@ -298,6 +307,9 @@ class ArticulationTransformer(nn.Module):
              "jt": (F.cross_entropy(out["jt"].transpose(1, 2), t.child_jtypes,
                                     reduction="none") * mc).sum() / nc,
              "cs": (((out["cs"] - t.child_cs) ** 2).mean(-1) * mc).sum() / nc}
+        if t.plan_counts is not None and "plan" in out:
+            L["plan"] = F.cross_entropy(out["plan"].transpose(1, 2),
+                                        t.plan_counts.clamp(0, self.cfg.plan_max_count))
         if t.child_label is not None and t.label_cs is not None:
             d2 = ((out["cs"].unsqueeze(-2) - t.label_cs) ** 2).mean(-1)     # (B, N, T)
             ml = mc * (t.child_label >= 0)
@@ -314,6 +326,6 @@ class ArticulationTransformer(nn.Module):
         weights = {"end": w.get("w_end", 1.0), "art": w.get("w_art", 10.0),
                    "jt": w.get("w_jt", 1.0), "cs": w.get("w_cs", 5.0),
                    "P": w.get("w_p", 2.0), "z": w.get("w_z", 1.0),
-                   "label": w.get("w_label", 1.0)}
+                   "label": w.get("w_label", 1.0), "plan": w.get("w_plan", 1.0)}
         L["total"] = sum(weights[k] * v for k, v in L.items())
         return L
