@@ -129,3 +129,14 @@ def test_sample_from_logits_batch_rows_are_independent(tiny):
     from model.geometry.prior import gumbel_softmax
     w = gumbel_softmax(peaked, 0.5, torch.Generator().manual_seed(0))
     assert torch.allclose(w[0, :, 2], torch.ones(K))
+
+
+def test_encode_is_frame_independent(tiny):
+    """Points in the iso unit cube and the same points in the box frame give the same z."""
+    from model.geometry.data import box_frame
+    ae = SDFAutoEncoder(tiny.sdf)
+    p = torch.rand(2, 300, 3) * torch.tensor([0.2, 0.9, 0.5]) + 0.1
+    c, s = box_frame(p)
+    box = (p - c[:, None]) * s[:, None]
+    assert torch.allclose(box.amax(1) - box.amin(1), torch.full((2, 3), 1.9), atol=1e-5)
+    assert torch.allclose(ae.encode(p), ae.encode(box), atol=1e-4)

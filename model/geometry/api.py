@@ -71,9 +71,7 @@ class ShapeModel:
     def encode(self, points: torch.Tensor) -> torch.Tensor:
         """Surface points (B, P, 3) of parts in the iso unit cube (the prepared-data frame)
         -> z (B, Z). The points are box-normalised first (model.geometry.data.box_frame)."""
-        from .data import box_frame
-        c, s = box_frame(points)
-        return self.ae.encode((points.float() - c.unsqueeze(1)) * s.unsqueeze(1))
+        return self.ae.encode(points.float())
 
     # -- conditions -----------------------------------------------------------------------
     @torch.inference_mode()

@@ -260,7 +260,15 @@ class SDFAutoEncoder(nn.Module):
     # -- inference ------------------------------------------------------------------------
     @torch.inference_mode()
     def encode(self, points: torch.Tensor) -> torch.Tensor:
-        """points (B, P, 3) -> posterior mean z (B, Z)."""
+        """points (B, P, 3) -> posterior mean z (B, Z).
+
+        The points are box-normalised first (model.geometry.data.box_frame). That is
+        idempotent, so points in the iso unit cube of the prepared data and points already
+        in the box frame give the same z.
+        """
+        from .data import box_frame
+        c, s = box_frame(points)
+        points = (points.float() - c.unsqueeze(1)) * s.unsqueeze(1)
         mu, _ = self.vae.encode(self.plane_net(self.pointnet(points)))
         return mu
 
