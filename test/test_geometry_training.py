@@ -22,42 +22,42 @@ def prim_data(tmp_path_factory):
                                   n_points=256, n_sdf=1024, seed=3)
 
 
-def box_sdf(x, half):
-    q = x.abs() - half
-    return q.clamp_min(0).norm(dim=-1) + q.max(-1).values.clamp_max(0)
-
-
-def occupancy_iou(ae, pts, half, res=24):
+def occupancy_iou(ae, pts, sdf_fn, res=24):
     ax = torch.linspace(-1, 1, res)
     grid = torch.stack(torch.meshgrid(ax, ax, ax, indexing="ij"), -1).reshape(1, -1, 3)
     pred = ae.query(ae.decode_planes(ae.encode(pts)), grid)[0] < 0
-    true = box_sdf(grid[0], half) < 0
+    true = sdf_fn(grid[0]) < 0
     return float((pred & true).sum()) / float((pred | true).sum())
 
 
 def test_tiny_autoencoder_overfits_one_primitive():
+    """A cylinder in its box frame (radius and half height 0.95): IoU must rise."""
     torch.manual_seed(0)
     g = torch.Generator().manual_seed(0)
     cfg = get_preset("tiny").sdf
     ae = SDFAutoEncoder(cfg)
-    half = torch.tensor([0.6, 0.35, 0.2])
-    # surface points of the box: random points projected onto a random face
-    p = (torch.rand(256, 3, generator=g) * 2 - 1) * half
-    ax = torch.randint(0, 3, (256,), generator=g)
-    p[torch.arange(256), ax] = half[ax] * torch.sign(torch.rand(256, generator=g) - 0.5)
+
+    def cyl(x):   # (N, 3) -> (N,), axis z
+        d = torch.stack([x[:, :2].norm(dim=-1) - 0.95, x[:, 2].abs() - 0.95], -1)
+        return d.clamp_min(0).norm(dim=-1) + d.max(-1).values.clamp_max(0)
+    th = torch.rand(256, generator=g) * 6.2832
+    zc = torch.rand(256, generator=g) * 1.9 - 0.95
+    p = torch.stack([0.95 * th.cos(), 0.95 * th.sin(), zc], -1)          # side
+    p[:64, :2] *= torch.rand(64, 1, generator=g).sqrt()                  # caps
+    p[:64, 2] = 0.95 * torch.sign(torch.rand(64, generator=g) - 0.5)
     pts = p.unsqueeze(0)
-    before = occupancy_iou(ae.eval(), pts, half)
+    before = occupancy_iou(ae.eval(), pts, cyl)
     opt = torch.optim.Adam(ae.parameters(), lr=3e-3)
     ae.train()
     for _ in range(150):
         q = (torch.rand(1, 512, 3, generator=g) * 2 - 1)           # half uniform, half near surface
         q[:, :256] = p[torch.randint(0, 256, (256,), generator=g)] + 0.05 * torch.randn(256, 3, generator=g)
-        loss, _ = ae(pts, q, box_sdf(q[0], half).unsqueeze(0))
+        loss, _ = ae(pts, q, cyl(q[0]).unsqueeze(0))
         opt.zero_grad()
         loss.backward()
         opt.step()
-    after = occupancy_iou(ae.eval(), pts, half)
-    assert after > before + 0.2 and after > 0.7, (before, after)
+    after = occupancy_iou(ae.eval(), pts, cyl)
+    assert after > before + 0.2 and after > 0.85, (before, after)
 
 
 def test_checkpoint_round_trip_and_errors(tmp_path):
