@@ -205,14 +205,24 @@ class SDFDecoder(nn.Module):
         self.out = nn.Linear(h, 1)
 
     def forward(self, planes: torch.Tensor, xyz: torch.Tensor) -> torch.Tensor:
-        """planes (B, 3, C, R, R), xyz (B, N, 3) -> sdf (B, N)."""
+        """planes (B, 3, C, R, R), xyz (B, N, 3) -> sdf (B, N).
+
+        Mathematically ``layer(cat([h, xyz, feat]))``; the concatenations are replaced by
+        split weights (they were ~15 % of the meshing time).
+        """
         feat = sample_planes(planes, plane_coords(xyz, self.cfg.bound))   # (B, N, C)
-        inp = torch.cat([xyz, feat], dim=-1)                              # (B, N, 3 + C)
-        h = inp
+        h = None
         for i, layer in enumerate(self.layers):
-            if i == self.cfg.mlp_skip:
-                h = torch.cat([h, inp], dim=-1)
-            h = F.relu(layer(h))
+            W, b = layer.weight, layer.bias
+            if i == 0:
+                h = F.linear(xyz, W[:, :3]) + F.linear(feat, W[:, 3:], b)
+            elif i == self.cfg.mlp_skip:
+                H = h.shape[-1]
+                h = (F.linear(h, W[:, :H]) + F.linear(xyz, W[:, H:H + 3])
+                     + F.linear(feat, W[:, H + 3:], b))
+            else:
+                h = layer(h)
+            h = F.relu_(h)
         return self.out(h).squeeze(-1)
 
 
