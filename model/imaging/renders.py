@@ -62,8 +62,8 @@ def object_from_record(data_root: os.PathLike, rec: ObjectRecord) -> Articulated
 
 
 def _object_from_source(rec: ObjectRecord) -> ArticulatedObject:
-    from model.data import partnet  # the dataset's PartNet-Mobility loader
-    obj = partnet.load_object(rec.source)
+    from model.data.partnet import load_partnet  # the dataset's PartNet-Mobility loader
+    obj = load_partnet(rec.source)
     if len(obj.parts) != rec.num_parts:
         log.warning("object %s: source has %d parts, record %d", rec.id, len(obj.parts), rec.num_parts)
     obj.name, obj.category = rec.id, rec.category
