@@ -141,7 +141,7 @@ def generate_method(name: str, checkpoint: Optional[str], prompts: list[str], cf
         res.timings.append(dict(g.timings))
         urdf = None
         if cfg.validity:
-            folder = out_dir / name / f"{i:03d}"
+            folder = out_dir / _slug(name) / f"{i:03d}"   # no spaces: file:// URIs in URDFs
             try:
                 if cfg.collision == "pipeline":
                     urdf = gen.export(g, str(folder), preview=False).urdf_path
