@@ -181,9 +181,12 @@ class RunConfig:
 
 
 @torch.no_grad()
-def evaluate_loss(net: ArticulationTransformer, items, geo_shape, text_cache, tc: TrainConfig,
-                  n_batches: int, seed: int = 1234, label_cs: Optional[torch.Tensor] = None) -> dict:
-    """Mean loss terms over a fixed random subset of decoding rounds (no dropout)."""
+def mean_losses(net: ArticulationTransformer, items, tc: TrainConfig, n_batches: int, seed: int,
+                modality: str, make_batch_fn) -> dict:
+    """Mean loss terms over a fixed random subset of decoding rounds (no dropout).
+
+    ``make_batch_fn(groups, rng) -> (batch, targets, cond, cmask, cond_index)`` builds one
+    batch for the condition modality (text or image)."""
     was = net.training
     net.eval()
     rng = np.random.default_rng(seed)
@@ -192,15 +195,22 @@ def evaluate_loss(net: ArticulationTransformer, items, geo_shape, text_cache, tc
     sums: dict[str, float] = {}
     nb = 0
     for groups in batches[:n_batches]:
-        batch, targets, cond, cmask, idx = make_batch(items, groups, geo_shape, text_cache, rng,
-                                                      label_cs, net.cfg.count_labels)
-        _, L = net(batch, cond, cmask, "text", cond_index=idx, targets=targets,
+        batch, targets, cond, cmask, idx = make_batch_fn(groups, rng)
+        _, L = net(batch, cond, cmask, modality, cond_index=idx, targets=targets,
                    weights=asdict(tc))
         for k, v in L.items():
             sums[k] = sums.get(k, 0.0) + float(v)
         nb += 1
     net.train(was)
     return {k: v / max(nb, 1) for k, v in sums.items()}
+
+
+def evaluate_loss(net: ArticulationTransformer, items, geo_shape, text_cache, tc: TrainConfig,
+                  n_batches: int, seed: int = 1234, label_cs: Optional[torch.Tensor] = None) -> dict:
+    """Mean loss terms of the text-conditioned network (see ``mean_losses``)."""
+    return mean_losses(net, items, tc, n_batches, seed, "text",
+                       lambda groups, rng: make_batch(items, groups, geo_shape, text_cache, rng,
+                                                      label_cs, net.cfg.count_labels))
 
 
 def train(rc: RunConfig) -> Path:

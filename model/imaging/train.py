@@ -98,29 +98,16 @@ def _image_batch(items, groups, views, geo_shape, conds: ImageConditions, label_
     return batch, targets, cond, cmask, torch.tensor(index)
 
 
-@torch.no_grad()
 def evaluate_image_loss(net, items, geo_shape, conds: ImageConditions, tc, n_batches: int,
                         seed: int = 1234, label_cs=None) -> dict:
     """Mean loss terms over a fixed subset of (object, rounds, view) samples (no dropout)."""
-    from model.articulation.data import group_rounds
-    was = net.training
-    net.eval()
-    rng = np.random.default_rng(seed)
-    batches = group_rounds(items, rng.permutation(len(items)), tc.batch_size,
-                           tc.rounds_per_object, rng)
-    sums: dict[str, float] = {}
-    nb = 0
-    for groups in batches[:n_batches]:
+    from model.articulation.train import mean_losses
+
+    def batch_fn(groups, rng):
         views = [int(i) % conds.views for i, _ in groups]
-        batch, targets, cond, cmask, idx = _image_batch(items, groups, views, geo_shape, conds,
-                                                        label_cs, net.cfg.count_labels)
-        _, L = net(batch, cond, cmask, "image", cond_index=idx, targets=targets,
-                   weights=asdict(tc))
-        for k, v in L.items():
-            sums[k] = sums.get(k, 0.0) + float(v)
-        nb += 1
-    net.train(was)
-    return {k: v / max(nb, 1) for k, v in sums.items()}
+        return _image_batch(items, groups, views, geo_shape, conds, label_cs, net.cfg.count_labels)
+
+    return mean_losses(net, items, tc, n_batches, seed, "image", batch_fn)
 
 
 def _init_from(path: str):
