@@ -38,8 +38,12 @@ class ModelBackend:
         return self.generator.generate(text=text, seed=seed, samples=samples)
 
     def export(self, result, out_dir: str):
-        return self.generator.export(result, out_dir, preview=self._settings.preview,
+        # the node draws preview.png after publishing (GenerationService._write_previews)
+        return self.generator.export(result, out_dir, preview=False,
                                      mesh_uri=self._settings.mesh_uri)
+
+    def preview(self, result, exported) -> str:
+        return self.generator.write_preview(result, exported)
 
 
 class ExampleBackend:

@@ -10,7 +10,10 @@ exported object folder per sample, ``sample_<k>/`` (URDF, meshes/, metadata.json
 is created with two marker files: ``.artformer_output`` (it is ours: only such folders are ever deleted) and
 ``.partial`` (removed last, when everything is written). Folders still marked partial are
 not results: they are removed on abandon and at the next start. A shutdown never interrupts
-an export, so after a clean stop no partial folder exists.
+an export, so after a clean stop no partial folder exists. With the ``preview`` parameter,
+``preview.png`` is drawn into each sample folder right after the answer is published (the
+result names its path; the file appears atomically a moment later, or not at all if the node
+stops first).
 """
 from __future__ import annotations
 
@@ -144,6 +147,7 @@ class GenerationService:
         self._root = settings.output_path
         self._threads: list[threading.Thread] = []
         self._rng = random.Random()
+        self._previews: list = []          # (generated, exported) to draw after publishing
 
     # -- lifecycle ------------------------------------------------------------------------
     @property
@@ -278,7 +282,23 @@ class GenerationService:
                 with self._cond:
                     self._busy = None
             self._safe_emit(result, urdf)
+            self._write_previews()
             release_free_memory()
+
+    def _write_previews(self) -> None:
+        """preview.png of the request just published (the picture is for people; it does
+        not hold up robot_description). Written atomically; skipped when stopping."""
+        tasks, self._previews = self._previews, []
+        if not tasks:
+            return
+        with self._export_lock:
+            for out, exp in tasks:
+                if self._state == STOPPING:
+                    return
+                try:
+                    self._backend.preview(out, exp)
+                except Exception as err:  # a picture must never cost the node
+                    log.warning("preview of %s failed: %s", exp.out_dir, err)
 
     def _seed_for(self, job: Job) -> int:
         if job.seed is not None:
@@ -316,6 +336,9 @@ class GenerationService:
                     # the exporter replaces its target folder atomically: give it a subfolder
                     target = os.path.join(folder, f"sample_{k}")
                     exports.append(self._backend.export(out, target))
+                    if self.settings.preview and hasattr(self._backend, "preview"):
+                        exports[-1].preview_path = os.path.join(exports[-1].out_dir, "preview.png")
+                        self._previews.append((out, exports[-1]))
                 t_exp = time.monotonic()
                 result = self._done_result(job, seed, folder, outs, exports,
                                            {"queue_wait": t_start - job.received,
@@ -327,9 +350,11 @@ class GenerationService:
                     urdf = f.read()
                 os.unlink(os.path.join(folder, PARTIAL_MARKER))
             except GenerationError as err:
+                self._previews = []
                 shutil.rmtree(folder, ignore_errors=True)
                 return answer(job, "error", f"generation failed: {err}", **base), None
             except Exception:
+                self._previews = []
                 shutil.rmtree(folder, ignore_errors=True)
                 raise
             self._apply_retention()

@@ -170,7 +170,9 @@ class Part:
     """One rigid part (a node of the tree).
 
     ``mesh`` is a ``trimesh.Trimesh`` in the object frame at rest (or None before geometry
-    exists); ``latent`` the geometry code z (np.ndarray) when a shape model produced it.
+    exists); ``latent`` the geometry code z (np.ndarray) when a shape model produced it;
+    ``collision`` optional convex collision pieces (trimesh, object frame at rest; boxes as
+    ``trimesh.primitives.Box``) that the exporter uses instead of deriving its own.
     """
     name: str
     label: str
@@ -180,6 +182,7 @@ class Part:
     joint: Joint = field(default_factory=Joint)
     mesh: object = None
     latent: np.ndarray | None = None
+    collision: list | None = None
 
     def __post_init__(self) -> None:
         self.bbox_center = _vec3(self.bbox_center, f"part {self.name!r} bbox centre")

@@ -222,3 +222,87 @@ def cells_decompose(mesh, cfg: CollisionConfig | None = None) -> list:
         pieces = dict(enumerate(keep))
     out = [meshops.to_trimesh(p[2]) for p in pieces.values()]
     return [m for m in out if len(m.vertices) >= 4 and m.volume > 0.0]
+
+
+# -- boxes from an occupancy grid -------------------------------------------------------------
+def occupancy_boxes(occ: np.ndarray, lo, hi, *, max_boxes: int = 32, coverage: float = 0.97,
+                    min_cells: int = 2, layer_fill: float = 1.0) -> tuple[list, float]:
+    """Axis-aligned boxes made of occupied cells (``trimesh.primitives.Box``, object frame)
+    and the share of the occupied cells they cover.
+
+    ``occ`` (nx, ny, nz) bool: cell (i, j, k) spans ``lo + (hi - lo) * [i, i+1] / n`` per axis.
+    Greedy: seed at the uncovered cell deepest inside the solid (chessboard distance, so the
+    largest inscribed cube first), grow the box one layer at a time in all six directions
+    while the new layer is fully occupied (a summed-volume table answers that in O(1)), mark
+    its cells covered; repeat until ``coverage`` of the occupied cells is covered, the boxes
+    reach ``max_boxes``, or the best seed's box adds fewer than ``min_cells`` new cells.
+    Boxes may overlap each other (same link) but never contain an empty cell, so a carcass
+    keeps its openings. Cost: milliseconds for a 64^3 grid.
+    """
+    import trimesh
+    from scipy import ndimage
+
+    occ = np.asarray(occ, dtype=bool)
+    total = int(occ.sum())
+    if total == 0:
+        return [], 0.0
+    lo = np.asarray(lo, dtype=np.float64)
+    cell = (np.asarray(hi, dtype=np.float64) - lo) / np.asarray(occ.shape, dtype=np.float64)
+    depth = ndimage.distance_transform_cdt(np.pad(occ, 1), metric="chessboard")[1:-1, 1:-1, 1:-1]
+    sat = np.zeros(tuple(s + 1 for s in occ.shape), dtype=np.int64)   # summed-volume table
+    sat[1:, 1:, 1:] = occ.cumsum(0).cumsum(1).cumsum(2)
+
+    def full(a, b) -> bool:   # are (a ``layer_fill`` share of) the cells of [a, b) occupied?
+        (x0, y0, z0), (x1, y1, z1) = a, b
+        s = (sat[x1, y1, z1] - sat[x0, y1, z1] - sat[x1, y0, z1] - sat[x1, y1, z0]
+             + sat[x0, y0, z1] + sat[x0, y1, z0] + sat[x1, y0, z0] - sat[x0, y0, z0])
+        return s >= layer_fill * (x1 - x0) * (y1 - y0) * (z1 - z0)
+
+    covered = np.zeros_like(occ)
+    score = depth.astype(np.int64)
+    boxes, done = [], 0
+    while done < coverage * total and len(boxes) < max_boxes:
+        seed = int(np.argmax(score))
+        if score.flat[seed] <= 0:
+            break
+        a = list(np.unravel_index(seed, occ.shape))
+        b = [c + 1 for c in a]
+        grown = True
+        while grown:
+            grown = False
+            for ax in range(3):
+                if a[ax] > 0:                                   # grow towards -ax
+                    na = list(a)
+                    na[ax] -= 1
+                    nb = list(b)
+                    nb[ax] = a[ax]
+                    if full(na, nb):
+                        a = na
+                        grown = True
+                if b[ax] < occ.shape[ax]:                       # grow towards +ax
+                    nb = list(b)
+                    nb[ax] += 1
+                    na = list(a)
+                    na[ax] = b[ax]
+                    if full(na, nb):
+                        b = nb
+                        grown = True
+        sl = tuple(slice(i, j) for i, j in zip(a, b))
+        new = int((occ[sl] & ~covered[sl]).sum())
+        covered[sl] = True
+        score[sl] = 0
+        if new < min_cells:
+            break
+        done += new
+        lo_b = lo + cell * np.asarray(a)
+        hi_b = lo + cell * np.asarray(b)
+        T = np.eye(4)
+        T[:3, 3] = (lo_b + hi_b) / 2.0
+        boxes.append(trimesh.primitives.Box(extents=hi_b - lo_b, transform=T))
+    return boxes, done / total
+
+
+def is_box(piece) -> bool:
+    """A collision piece the URDF can state as a ``<box>`` primitive."""
+    import trimesh
+    return isinstance(piece, trimesh.primitives.Box)

@@ -86,22 +86,55 @@ def _direction(azimuth: float, elevation: float) -> np.ndarray:
     return np.array([math.cos(e) * math.cos(a), math.cos(e) * math.sin(a), math.sin(e)])
 
 
-def _scene(obj, ratio: float, colours) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Triangles (T, 3, 3), base colours (T, 3) and a closed-surface flag (T,) of the object
-    posed at ``ratio``. Faces of watertight, outward-wound meshes may be back-face culled."""
-    T = obj.link_transforms(ratio=ratio)
-    tris, cols, closed = [], [], []
-    for p, c in zip(obj.parts, colours):
+def cluster_vertices(v: np.ndarray, f: np.ndarray, cell: float) -> tuple[np.ndarray, np.ndarray]:
+    """Vertex-clustering simplification: vertices in one ``cell``-sized grid cube merge into
+    their mean; faces that collapse disappear. At pixel-sized cells the picture does not
+    change, and a 70k-face marching-cubes handle a few pixels wide becomes a few hundred."""
+    if cell <= 0 or len(f) == 0:
+        return v, f
+    _, inv = np.unique(np.floor(v / cell).astype(np.int64), axis=0, return_inverse=True)
+    inv = inv.reshape(-1)
+    n = int(inv.max()) + 1
+    cnt = np.bincount(inv, minlength=n).astype(np.float64)
+    nv = np.stack([np.bincount(inv, weights=v[:, k], minlength=n) for k in range(3)], 1) / cnt[:, None]
+    nf = inv[f]
+    keep = (nf[:, 0] != nf[:, 1]) & (nf[:, 1] != nf[:, 2]) & (nf[:, 0] != nf[:, 2])
+    return nv, nf[keep]
+
+
+def _part_geometry(obj, cell: float = 0.0) -> list:
+    """Per part (vertices, faces, closed) at rest; ``cell`` > 0 simplifies by vertex
+    clustering. Faces of watertight, outward-wound meshes may be back-face culled."""
+    out = []
+    for p in obj.parts:
         if p.mesh is None or len(p.mesh.faces) == 0:
+            out.append(None)
             continue
-        v = np.asarray(p.mesh.vertices, dtype=np.float64) @ T[p.name][:3, :3].T + T[p.name][:3, 3]
-        f = np.asarray(p.mesh.faces)
-        tris.append(v[f])                                            # (F, 3, 3)
-        cols.append(np.broadcast_to(c, (len(f), 3)))
         try:
             is_closed = bool(p.mesh.is_watertight and p.mesh.volume > 0)
         except Exception:  # broken meshes: draw both sides
             is_closed = False
+        v, f = np.asarray(p.mesh.vertices, dtype=np.float64), np.asarray(p.mesh.faces)
+        if cell > 0:
+            v, f = cluster_vertices(v, f, cell)
+        out.append((v, f, is_closed))
+    return out
+
+
+def _scene(obj, ratio: float, colours, geometry: Optional[list] = None
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Triangles (T, 3, 3), base colours (T, 3) and a closed-surface flag (T,) of the object
+    posed at ``ratio`` (``geometry``: from ``_part_geometry``, default the full meshes)."""
+    T = obj.link_transforms(ratio=ratio)
+    geometry = _part_geometry(obj) if geometry is None else geometry
+    tris, cols, closed = [], [], []
+    for p, c, g in zip(obj.parts, colours, geometry):
+        if g is None:
+            continue
+        v, f, is_closed = g
+        v = v @ T[p.name][:3, :3].T + T[p.name][:3, 3]
+        tris.append(v[f])                                            # (F, 3, 3)
+        cols.append(np.broadcast_to(c, (len(f), 3)))
         closed.append(np.full(len(f), is_closed))
     if not tris:
         return np.zeros((0, 3, 3)), np.zeros((0, 3)), np.zeros(0, dtype=bool)
@@ -193,19 +226,29 @@ def _rasterise(tris: np.ndarray, cols: np.ndarray, closed: np.ndarray, eye: np.n
 
 
 def render_views(obj, ratios: Sequence[float] = (0.0, 0.5, 1.0), size=224, *,
-                 options: Optional[RenderOptions] = None, seed: Optional[int] = None) -> np.ndarray:
+                 options: Optional[RenderOptions] = None, seed: Optional[int] = None,
+                 simplify: bool = False) -> np.ndarray:
     """Render ``obj`` at each openness ratio; returns (len(ratios), H, W, 3) uint8.
 
     ``size``: int (square) or (H, W). ``options`` fixes camera / lighting / colours; with
     ``seed`` and no ``options`` they are drawn by ``random_options(seed)``. All views of one
     call share a camera framed on the union of the posed objects, so they are comparable.
+    ``simplify``: cluster mesh vertices at half a (supersampled) pixel of the object's rest
+    size first (previews of dense marching-cubes meshes; the dataset renders keep every face).
     """
     H, W = (size, size) if np.ndim(size) == 0 else (int(size[0]), int(size[1]))
     if options is None:
         options = random_options(seed) if seed is not None else RenderOptions()
     ss = max(1, int(options.supersample))
     colours = _part_colours(obj, options.colour_mode, seed)
-    scenes = [_scene(obj, float(r), colours) for r in ratios]
+    cell = 0.0
+    if simplify:
+        b = [p.mesh.bounds for p in obj.parts if p.mesh is not None and len(p.mesh.faces)]
+        if b:
+            ext = float(np.max(np.max([x[1] for x in b], 0) - np.min([x[0] for x in b], 0)))
+            cell = 0.5 * ext * options.margin / (min(H, W) * ss)
+    geometry = _part_geometry(obj, cell)
+    scenes = [_scene(obj, float(r), colours, geometry) for r in ratios]
     pts = [t.reshape(-1, 3) for t, _, _ in scenes if len(t)]
     if pts:
         allp = np.concatenate(pts)
@@ -234,7 +277,7 @@ def write_preview(obj, path, *, ratios: Sequence[float] = (0.0, 0.5, 1.0), size:
     from PIL import Image
 
     from model.data.format import atomic_write_bytes
-    views = render_views(obj, ratios, size, options=options)        # (V, S, S, 3)
+    views = render_views(obj, ratios, size, options=options, simplify=True)   # (V, S, S, 3)
     gap = 4
     strip = np.full((size, len(views) * size + (len(views) - 1) * gap, 3), 255, dtype=np.uint8)
     for k, im in enumerate(views):

@@ -31,7 +31,7 @@ import numpy as np
 
 from model.core.objects import ArticulatedObject, JointType, ObjectValidationError, Part
 
-from .collision import (CollisionConfig, collision_pieces,  # noqa: F401  (re-exported)
+from .collision import (CollisionConfig, collision_pieces, is_box,  # noqa: F401  (re-exported)
                         is_solid_enough)
 
 log = logging.getLogger(__name__)
@@ -102,18 +102,17 @@ def mass_properties(mesh, density: float) -> tuple[float, np.ndarray, np.ndarray
     """
     com, inertia, mass = None, None, 0.0
     if mesh is not None and len(mesh.faces):
-        cands = [mesh] if mesh.is_watertight and mesh.volume > 1e-12 else []
-        try:
-            cands.append(mesh.convex_hull)
-        except Exception:  # qhull fails on flat or degenerate input
-            pass
-        for m in cands:
-            if m.is_watertight and m.volume > 1e-12:
-                m = m.copy()
-                m.density = density
-                mass, com = float(m.mass), np.asarray(m.center_mass, dtype=np.float64)
-                inertia = np.asarray(m.moment_inertia, dtype=np.float64)
-                break
+        props = _volume_integrals(mesh)
+        if props is None:
+            try:
+                props = _volume_integrals(mesh.convex_hull)
+            except Exception:  # qhull fails on flat or degenerate input
+                props = None
+        if props is not None:
+            # one pass of trimesh's integrals (cached on the mesh), scaled to ``density``
+            mass = float(props.volume) * density
+            com = np.asarray(props.center_mass, dtype=np.float64)
+            inertia = np.asarray(props.inertia, dtype=np.float64) * (density / props.density)
     if inertia is None:  # flat / empty: a solid box of the bounds, at least 2 mm thick
         lo, hi = (mesh.bounds if mesh is not None and len(mesh.vertices)
                   else (np.zeros(3), np.zeros(3)))
@@ -126,6 +125,14 @@ def mass_properties(mesh, density: float) -> tuple[float, np.ndarray, np.ndarray
         inertia = inertia * (MIN_MASS / max(mass, 1e-12))
         mass = MIN_MASS
     return mass, com, make_positive_definite(inertia)
+
+
+def _volume_integrals(m):
+    """trimesh's mass properties of a closed mesh with a positive volume, else None."""
+    if not m.is_watertight:
+        return None
+    props = m.mass_properties
+    return props if props.volume > 1e-12 else None
 
 
 def make_positive_definite(inertia: np.ndarray, rel_floor: float = 1e-6) -> np.ndarray:
@@ -283,11 +290,22 @@ def _build_robot(obj, robot_name, tmp, uri_base, fmt, density, collision):
             visuals.append(y.Visual(name=f"{lname}_visual", origin=_origin(-o),
                                     geometry=y.Geometry(mesh=y.Mesh(filename=f"{uri_base}/{rel}")),
                                     material=y.Material(name=mat_name)))
-            others = [q.mesh for q in obj.parts if q is not p and q.mesh is not None]
-            for k, piece in enumerate(collision_pieces(p.mesh, collision, others)):
-                crel = f"meshes/{lname}_collision_{k}.{cfmt}"
+            if p.collision and collision.method == "auto":
+                pieces = p.collision          # made with the part (e.g. boxes from its SDF)
+            else:
+                others = [q.mesh for q in obj.parts if q is not p and q.mesh is not None]
+                pieces = collision_pieces(p.mesh, collision, others)
+            for k, piece in enumerate(pieces):
+                cname = f"{lname}_collision_{k}"
+                if is_box(piece):             # a <box> primitive: exact and cheapest to collide
+                    centre = np.asarray(piece.primitive.transform)[:3, 3]
+                    collisions.append(y.Collision(
+                        name=cname, origin=_origin(centre - o),
+                        geometry=y.Geometry(box=y.Box(size=np.asarray(piece.primitive.extents)))))
+                    continue
+                crel = f"meshes/{cname}.{cfmt}"
                 _write_mesh(piece, tmp / crel, cfmt)
-                collisions.append(y.Collision(name=f"{lname}_collision_{k}", origin=_origin(-o),
+                collisions.append(y.Collision(name=cname, origin=_origin(-o),
                                               geometry=y.Geometry(mesh=y.Mesh(filename=f"{uri_base}/{crel}"))))
         mass, com, inertia = mass_properties(p.mesh, density)
         inertial = y.Inertial(origin=_origin(com - o), mass=mass, inertia=inertia)

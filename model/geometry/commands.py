@@ -97,14 +97,16 @@ def _bench(argv: list[str]) -> int:
     p.add_argument("--parts", type=int, default=8)
     p.add_argument("--steps", type=int, default=50)
     p.add_argument("--repeats", type=int, default=10)
-    p.add_argument("--threads", type=int, default=2)
+    p.add_argument("--threads", type=int, default=2, help="torch threads for meshing (2)")
+    p.add_argument("--ddim-threads", type=int, default=1,
+                   help="torch threads for DDIM (1, as the pipeline: model.core.threads)")
     a = p.parse_args(argv[2:])
     import torch
     torch.set_num_threads(a.threads)
     from .evaluate import benchmark
     shape = _load_shape(a, need_prior=True)
     res = benchmark(shape, resolution=a.resolution, parts=a.parts, steps=a.steps,
-                    repeats=a.repeats)
+                    repeats=a.repeats, ddim_threads=a.ddim_threads)
     for k, v in res.items():
         print(f"{k:<36} {v:.1f}" if isinstance(v, float) else f"{k:<36} {v}")
     return 0

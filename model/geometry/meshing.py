@@ -1,11 +1,13 @@
 """Fast meshing of SDFs: coarse-to-fine evaluation + marching cubes (DESIGN §4.3).
 
 The SDF is evaluated on a coarse vertex grid over [-bound, bound]^3, then the resolution is
-doubled level by level: the previous level is upsampled trilinearly and only the vertices of
-cells that the upsampled field puts near the surface (|sdf| < band x half a cell diagonal,
-or a sign change; optionally dilated by one cell) are evaluated; the others keep the
-interpolated value (far from the surface only its sign matters). ``skimage.measure.marching_cubes(level=0)`` then runs
-on the finest grid, padded with one layer of "outside" so every surface is closed.
+doubled level by level: the previous level is upsampled trilinearly and only the vertices
+that the upsampled field puts near the surface (|sdf| < band x the cell diagonal) and that
+were not evaluated before get the network's value; the others keep the interpolated value
+(far from the surface only its sign matters). Network calls go in chunks of 32k points
+(larger buffers measured 1.6x slower: page faults on every fresh allocation).
+``skimage.measure.marching_cubes(level=0)`` then runs on the finest grid, padded with one
+layer of "outside" so every surface is closed.
 
 A part whose grid has no zero crossing gets an empty mesh and ``status`` "empty" (all
 outside) or "full" (all inside): callers decide (the pipeline can fall back to its bbox).
@@ -14,7 +16,7 @@ from __future__ import annotations
 
 import logging
 from dataclasses import dataclass
-from typing import Callable
+from typing import Callable, Optional
 
 import numpy as np
 import torch
@@ -30,6 +32,9 @@ class MeshResult:
     mesh: object            # trimesh.Trimesh (empty when status != "ok")
     status: str             # "ok" | "empty" (no inside) | "full" (no outside)
     evaluations: int        # SDF evaluations spent on this part
+    inside: Optional[np.ndarray] = None   # (n+1, n+1, n+1) bool: grid vertices inside, over
+                                          # [-bound, bound]^3 (collision boxes use it)
+    bound: float = 1.0                    # the grid's half extent
 
     @property
     def ok(self) -> bool:
@@ -50,7 +55,7 @@ def _vertices(n: int, bound: float) -> torch.Tensor:
 
 @torch.inference_mode()
 def evaluate_grid(sdf_fn: SdfFn, batch: int, resolution: int = 64, *, bound: float = 1.0,
-                  band: float = 1.5, dilate: bool = False, min_coarse: int = 16, chunk: int = 262_144
+                  band: float = 1.5, min_coarse: int = 16, chunk: int = 32_768
                   ) -> tuple[torch.Tensor, torch.Tensor]:
     """SDF values on the (resolution+1)^3 vertex grid of ``batch`` parts, coarse to fine.
 
@@ -68,29 +73,20 @@ def evaluate_grid(sdf_fn: SdfFn, batch: int, resolution: int = 64, *, bound: flo
             h = 2 * bound / n
             values = F.interpolate(values.unsqueeze(1), size=(n + 1,) * 3, mode="trilinear",
                                    align_corners=True).squeeze(1)
-            # cells of this level near the surface according to the upsampled previous level:
-            # an exact SDF has a corner within half a cell diagonal of any surface point in
-            # the cell; ``band`` > 1 leaves room for interpolation error and a learned SDF
-            corners = values.unsqueeze(1)                                  # (B, 1, n+1, n+1, n+1)
-            vmin = -F.max_pool3d(-corners.abs(), 2, stride=1)
-            vmax = F.max_pool3d(corners, 2, stride=1)
-            vlo = -F.max_pool3d(-corners, 2, stride=1)
-            near = (vmin < band * h * 3 ** 0.5 / 2) | ((vmax > 0) & (vlo < 0))   # (B, 1, n, n, n)
-            if dilate:
-                near = F.max_pool3d(near.float(), 3, stride=1, padding=1) > 0
-            # a vertex is needed if any of its (up to 8) cells is near
-            mask = (F.max_pool3d(F.pad(near.float(), (1, 1, 1, 1, 1, 1)), 2, stride=1) > 0).squeeze(1)
+            # A vertex needs its true value when the upsampled field puts it within ``band``
+            # cell diagonals of the surface; farther out only its sign matters, and the
+            # interpolation has it right (measured on generated parts: band 1.5 gives the
+            # same signs as evaluating all 65^3 vertices, band 1.0 misses 12 of 4.9 M).
+            mask = values.abs() < band * h * 3 ** 0.5
             ex = torch.zeros(batch, n + 1, n + 1, n + 1, dtype=torch.bool)
             ex[:, ::2, ::2, ::2] = exact
             mask &= ~ex
             exact = ex
-        idx = mask.nonzero()                                               # (M, 4)
+        idx = mask.nonzero()                       # (M, 4), row-major order: grouped by part
         counts = torch.bincount(idx[:, 0], minlength=batch)                # (B,)
         evals += counts
         if idx.shape[0]:
             maxc = int(counts.max())
-            order = torch.argsort(idx[:, 0], stable=True)
-            idx = idx[order]
             starts = torch.cumsum(counts, 0) - counts
             slot = torch.arange(idx.shape[0]) - starts[idx[:, 0]]          # (M,)
             xyz = torch.zeros(batch, maxc, 3)
@@ -127,15 +123,17 @@ def marching_cubes(values: np.ndarray, bound: float = 1.0) -> MeshResult:
 
 
 def mesh_sdf_batch(sdf_fn: SdfFn, batch: int, resolution: int = 64, *, bound: float = 1.0,
-                   band: float = 1.5, dilate: bool = False, min_coarse: int = 16
-                   ) -> list[MeshResult]:
+                   band: float = 1.5, min_coarse: int = 16) -> list[MeshResult]:
     """Mesh ``batch`` SDFs at once (one batched network call per level)."""
     values, evals = evaluate_grid(sdf_fn, batch, resolution, bound=bound, band=band,
-                                  dilate=dilate, min_coarse=min_coarse)
+                                  min_coarse=min_coarse)
+    inside = (values < 0).numpy()
     out = []
     for b in range(batch):
         r = marching_cubes(values[b].numpy(), bound)
         r.evaluations = int(evals[b])
+        r.inside = inside[b]
+        r.bound = bound
         out.append(r)
     return out
 

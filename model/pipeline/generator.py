@@ -22,6 +22,7 @@ from typing import Optional, Union
 import numpy as np
 
 from model.core import ArticulatedObject, ObjectValidationError
+from model.core.threads import torch_threads
 from model.pipeline.api import (ExportResult, GeneratedObject, GenerationConfig,
                                 GenerationError)
 
@@ -158,7 +159,8 @@ class Generator:
         t = time.perf_counter()
         if text is not None:
             prompt = check_prompt(text)
-            cond, mask = self.articulation.encode_text([prompt])           # (1, L, D), (1, L)
+            with torch_threads(cfg.token_threads):
+                cond, mask = self.articulation.encode_text([prompt])       # (1, L, D), (1, L)
             modality, decoder = "text", self.articulation
             timings["text_encoding"] = time.perf_counter() - t
         else:
@@ -175,9 +177,10 @@ class Generator:
 
         t = time.perf_counter()
         S = int(samples)
-        trees = decoder.decode(cond.expand(S, -1, -1), mask.expand(S, -1), seed=seed,
-                               max_nodes=cfg.max_nodes, max_depth=cfg.max_depth,
-                               max_children=cfg.max_children, modality=modality, keep=keep)
+        with torch_threads(cfg.token_threads):
+            trees = decoder.decode(cond.expand(S, -1, -1), mask.expand(S, -1), seed=seed,
+                                   max_nodes=cfg.max_nodes, max_depth=cfg.max_depth,
+                                   max_children=cfg.max_children, modality=modality, keep=keep)
         timings["decoding"] = (time.perf_counter() - t) / S
 
         results = []
@@ -209,24 +212,27 @@ class Generator:
             else:
                 P = torch.as_tensor(tree.P_logits[new], dtype=torch.float32)      # (K, C, N)
                 cs = torch.as_tensor(tree.cs[new], dtype=torch.float32)           # (K, 64)
-                z = self.shape.sample_from_logits(P, cs, steps=cfg.steps, tau=cfg.temperature,
-                                                  guidance=cfg.guidance, generator=gen)
+                with torch_threads(cfg.token_threads):
+                    z = self.shape.sample_from_logits(P, cs, steps=cfg.steps, tau=cfg.temperature,
+                                                      guidance=cfg.guidance, generator=gen)
             if cfg.geometry == "retrieve":
                 z, _ = self.shape.retrieve(z, texts)
         timings["diffusion"] = time.perf_counter() - t
 
         t = time.perf_counter()
-        meshes = self.shape.decode_meshes(z, resolution=cfg.resolution) if new else []
+        with torch_threads(cfg.threads):
+            decoded = self.shape.decode(z, resolution=cfg.resolution) if new else []
         fallbacks = []
-        for k, m in zip(new, meshes):
+        for k, r in zip(new, decoded):
             part = obj.parts[k]
-            if m.is_empty:
+            if not r.ok:
                 # No surface in the decoded field: keep the part usable as its box.
                 fallbacks.append(part.name)
                 m = trimesh.creation.box(extents=np.maximum(part.bbox_size, 1e-3))
                 m.apply_translation(part.bbox_center)
             else:
-                m = fit_to_bbox(m, part.bbox_center, part.bbox_size)
+                m = fit_to_bbox(r.mesh, part.bbox_center, part.bbox_size)
+                part.collision = _collision_boxes(r, m)
             part.mesh = m
             part.latent = z[new.index(k)].numpy().copy()
         if keep is not None:
@@ -252,6 +258,9 @@ class Generator:
     # -- export -----------------------------------------------------------------------------
     def export(self, result: GeneratedObject, out_dir: Union[str, os.PathLike], *,
                preview: bool = True, mesh_uri: str = "file") -> ExportResult:
+        """URDF + meshes + metadata as one atomic folder (timed as "export"), then, with
+        ``preview``, preview.png written into it atomically (timed as "preview"): robots
+        need the folder, people the picture, so the picture does not hold up the URDF."""
         from model.export import CollisionConfig, export_object
 
         t = time.perf_counter()
@@ -260,10 +269,44 @@ class Generator:
                           for k, p in self.loaded.paths.items() if p},
                 "config": asdict(self.config)}
         out = export_object(result.obj, out_dir, mesh_format=self.config.mesh_format,
-                            provenance=prov, preview=preview, mesh_uri=mesh_uri,
+                            provenance=prov, preview=False, mesh_uri=mesh_uri,
                             collision=CollisionConfig(method=self.config.collision))
         result.timings["export"] = time.perf_counter() - t
+        if preview:
+            self.write_preview(result, out)
         return out
+
+    def write_preview(self, result: GeneratedObject, exported: ExportResult) -> str:
+        """preview.png (openness 0 / 0.5 / 1) into an exported folder; sets its path."""
+        from model.export.render import write_preview
+
+        t = time.perf_counter()
+        exported.preview_path = write_preview(result.obj, Path(exported.out_dir) / "preview.png")
+        result.timings["preview"] = time.perf_counter() - t
+        return exported.preview_path
+
+
+def _collision_boxes(r, fitted, max_boxes: int = 32, min_coverage: float = 0.0,
+                     layer_fill: float = 0.8):
+    """Collision boxes of a generated part from its SDF cell occupancy (``r.inside`` over the
+    meshing cube), mapped by the same per-axis scale and shift that fitted the mesh to its
+    box. Box-like parts (panels, carcasses, drawers) come out as a few exact boxes in
+    milliseconds; when ``max_boxes`` cannot cover ``min_coverage`` of the solid (round
+    shapes), None leaves the choice to the exporter (hull if convex, else V-HACD)."""
+    from model.export.collision import occupancy_boxes
+
+    if r.inside is None or not r.inside.any():
+        return None
+    lo_m, hi_m = np.asarray(r.mesh.bounds, dtype=np.float64)
+    lo_f, hi_f = np.asarray(fitted.bounds, dtype=np.float64)
+    scale = (hi_f - lo_f) / np.maximum(hi_m - lo_m, 1e-9)
+    bound = r.bound
+    # vertex v of the (n+1)^3 grid owns the cell [v - h/2, v + h/2]^3 (its dual cell)
+    half = bound + bound / (r.inside.shape[0] - 1)
+    lo = (-half - (lo_m + hi_m) / 2.0) * scale + (lo_f + hi_f) / 2.0
+    hi = (half - (lo_m + hi_m) / 2.0) * scale + (lo_f + hi_f) / 2.0
+    boxes, covered = occupancy_boxes(r.inside, lo, hi, max_boxes=max_boxes, layer_fill=layer_fill)
+    return boxes if boxes and covered >= min_coverage else None
 
 
 def validate_config(cfg: GenerationConfig) -> None:
@@ -279,6 +322,7 @@ def validate_config(cfg: GenerationConfig) -> None:
          f"collision must be auto|cells|vhacd|hull|none, got {cfg.collision!r}"),
         (cfg.device == "cpu", f"device {cfg.device!r} is not supported; this build runs on the CPU"),
         (1 <= cfg.threads <= 64, f"threads must be in [1, 64], got {cfg.threads}"),
+        (1 <= cfg.token_threads <= 64, f"token_threads must be in [1, 64], got {cfg.token_threads}"),
         (1 <= cfg.max_nodes <= 64, f"max_nodes must be in [1, 64], got {cfg.max_nodes}"),
         (0 <= cfg.max_depth <= 16, f"max_depth must be in [0, 16], got {cfg.max_depth}"),
         (0 <= cfg.max_children <= 64, f"max_children must be in [0, 64], got {cfg.max_children}"),

@@ -1,0 +1,31 @@
+"""Per-stage torch thread counts.
+
+On a 2-core CPU the token-sized networks (text encoder, articulation decoding, the 50 DDIM
+steps of the shape prior) run fastest on one thread: waking a second OpenMP thread for a
+64 x 128 matrix costs more than the product (measured: 50-step DDIM over 8 parts 98 ms on
+one thread, 287 ms on two, `python -m model.metrics.bench` / `artformer bench geometry`).
+SDF meshing evaluates ~10^5 points per part and gains from every core. ``torch_threads``
+sets the count for one stage and restores the previous one.
+"""
+from __future__ import annotations
+
+import contextlib
+from typing import Iterator
+
+
+@contextlib.contextmanager
+def torch_threads(n: int | None) -> Iterator[None]:
+    """Run the body with ``torch.set_num_threads(n)`` (None or < 1: leave it as it is)."""
+    import torch
+    if n is None or int(n) < 1:
+        yield
+        return
+    before = torch.get_num_threads()
+    if before == int(n):
+        yield
+        return
+    torch.set_num_threads(int(n))
+    try:
+        yield
+    finally:
+        torch.set_num_threads(before)
