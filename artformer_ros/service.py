@@ -33,6 +33,7 @@ import numpy as np
 
 from artformer_ros.conversions import SEED_MAX, result_to_json, slug
 from artformer_ros.params import NodeSettings
+from model.core.runtime import release_free_memory
 
 log = logging.getLogger("artformer_ros.service")
 
@@ -91,25 +92,6 @@ def _write_atomic(path: str, text: str) -> None:
     finally:
         if os.path.exists(tmp):
             os.unlink(tmp)
-
-
-def release_free_memory() -> None:
-    """Hand freed heap pages back to the OS after a request (glibc ``malloc_trim``): meshing,
-    collision decomposition and rendering leave hundreds of MB of free but mapped heap, which
-    would otherwise show as resident memory of an idle node. No-op where unavailable."""
-    global _malloc_trim
-    if _malloc_trim is None:
-        try:
-            import ctypes
-
-            _malloc_trim = ctypes.CDLL("libc.so.6").malloc_trim
-        except (OSError, AttributeError):
-            _malloc_trim = False
-    if _malloc_trim:
-        _malloc_trim(0)
-
-
-_malloc_trim = None
 
 
 def owned_folders(root: str) -> tuple[list[str], list[str]]:

@@ -111,7 +111,7 @@ def test_explicit_method_overrides_part_boxes(tmp_path):
 def test_torch_threads_restores(n):
     import torch
 
-    from model.core.threads import torch_threads
+    from model.core.runtime import torch_threads
     before = torch.get_num_threads()
     with torch_threads(n):
         if n >= 1:

@@ -20,7 +20,7 @@ from typing import Optional, Sequence
 
 import numpy as np
 
-_MAX_CANDIDATES = 3_000_000      # pixel candidates per chunk (memory bound, ~150 MB peak)
+_MAX_CANDIDATES = 400_000        # pixel candidates per chunk (bounds memory: ~20 arrays of it)
 
 
 @dataclass
@@ -121,7 +121,7 @@ def _part_geometry(obj, cell: float = 0.0) -> list:
     return out
 
 
-def _scene(obj, ratio: float, colours, geometry: Optional[list] = None
+def _scene(obj, ratio: float, colours, geometry: Optional[list] = None, dtype=np.float64
            ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Triangles (T, 3, 3), base colours (T, 3) and a closed-surface flag (T,) of the object
     posed at ``ratio`` (``geometry``: from ``_part_geometry``, default the full meshes)."""
@@ -133,7 +133,7 @@ def _scene(obj, ratio: float, colours, geometry: Optional[list] = None
             continue
         v, f, is_closed = g
         v = v @ T[p.name][:3, :3].T + T[p.name][:3, 3]
-        tris.append(v[f])                                            # (F, 3, 3)
+        tris.append(v[f].astype(dtype, copy=False))                  # (F, 3, 3)
         cols.append(np.broadcast_to(c, (len(f), 3)))
         closed.append(np.full(len(f), is_closed))
     if not tris:
@@ -156,6 +156,8 @@ def _rasterise(tris: np.ndarray, cols: np.ndarray, closed: np.ndarray, eye: np.n
         right = np.array([0.0, -1.0, 0.0])
     right /= np.linalg.norm(right)
     cam_up = np.cross(right, fwd)
+    # per-triangle arithmetic in the triangles' precision (float32 for previews)
+    eye, fwd, right, cam_up = (a.astype(tris.dtype) for a in (eye, fwd, right, cam_up))
     rel = tris - eye                                                 # (T, 3, 3)
     x, y, z = rel @ right, rel @ cam_up, rel @ fwd                   # (T, 3) each
     near = 1e-3
@@ -248,12 +250,16 @@ def render_views(obj, ratios: Sequence[float] = (0.0, 0.5, 1.0), size=224, *,
             ext = float(np.max(np.max([x[1] for x in b], 0) - np.min([x[0] for x in b], 0)))
             cell = 0.5 * ext * options.margin / (min(H, W) * ss)
     geometry = _part_geometry(obj, cell)
-    scenes = [_scene(obj, float(r), colours, geometry) for r in ratios]
-    pts = [t.reshape(-1, 3) for t, _, _ in scenes if len(t)]
-    if pts:
-        allp = np.concatenate(pts)
-        lo, hi = allp.min(axis=0), allp.max(axis=0)
-    else:
+    # one camera framed on the union of the posed objects (bounds of the posed vertices);
+    # the scenes themselves are built one at a time (a 19-part object is ~1M triangles)
+    lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+    for r in ratios:
+        T = obj.link_transforms(ratio=float(r))
+        for p, g in zip(obj.parts, geometry):
+            if g is not None and len(g[1]):
+                v = g[0][np.unique(g[1])] @ T[p.name][:3, :3].T + T[p.name][:3, 3]
+                lo, hi = np.minimum(lo, v.min(axis=0)), np.maximum(hi, v.max(axis=0))
+    if not np.all(np.isfinite(lo)):
         lo, hi = -np.ones(3) * 0.5, np.ones(3) * 0.5
     centre = (lo + hi) / 2.0
     radius = max(float(np.linalg.norm(hi - lo)) / 2.0, 1e-3) * options.margin
@@ -261,8 +267,12 @@ def render_views(obj, ratios: Sequence[float] = (0.0, 0.5, 1.0), size=224, *,
     dist = radius / math.sin(half_fov)
     eye = centre + dist * _direction(options.azimuth, options.elevation)
     out = np.empty((len(ratios), H, W, 3), dtype=np.uint8)
-    for k, (tris, cols, closed) in enumerate(scenes):
+    for k, r in enumerate(ratios):
+        # previews: single precision halves the per-triangle arrays (sub-pixel differences)
+        tris, cols, closed = _scene(obj, float(r), colours, geometry,
+                                    np.float32 if simplify else np.float64)
         img = _rasterise(tris, cols, closed, eye, centre, options.fov, H * ss, W * ss, options)
+        del tris, cols, closed
         if ss > 1:
             img = img.reshape(H, ss, W, ss, 3).mean(axis=(1, 3))
         out[k] = np.round(img * 255.0).astype(np.uint8)

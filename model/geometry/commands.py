@@ -99,7 +99,7 @@ def _bench(argv: list[str]) -> int:
     p.add_argument("--repeats", type=int, default=10)
     p.add_argument("--threads", type=int, default=2, help="torch threads for meshing (2)")
     p.add_argument("--ddim-threads", type=int, default=1,
-                   help="torch threads for DDIM (1, as the pipeline: model.core.threads)")
+                   help="torch threads for DDIM (1, as the pipeline: model.core.runtime)")
     a = p.parse_args(argv[2:])
     import torch
     torch.set_num_threads(a.threads)

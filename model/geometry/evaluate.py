@@ -17,7 +17,7 @@ from typing import Optional
 import numpy as np
 import torch
 
-from model.core.threads import torch_threads
+from model.core.runtime import torch_threads
 
 log = logging.getLogger(__name__)
 
@@ -142,7 +142,7 @@ def benchmark(shape, *, resolution: int = 64, parts: int = 8, steps: int = 50, r
     parts); all of them meshed in one call (per part); 50-step DDIM over all of them.
 
     Meshing runs on the current torch threads; DDIM on ``ddim_threads`` (the pipeline runs
-    its token-sized networks on one thread, model.core.threads)."""
+    its token-sized networks on one thread, model.core.runtime)."""
     gen = torch.Generator().manual_seed(seed)
     lat = shape.bank.get("latents") if shape.bank else None
     if lat is not None:

@@ -5,9 +5,11 @@ so the peak resident set size (``resource.getrusage(RUSAGE_SELF).ru_maxrss``, th
 high-water mark) is that of one generator serving N prompts, not of whatever ran before.
 
 Stage timings are the pipeline's own (``GeneratedObject.timings``: stage → seconds, e.g. text
-encoding, decoding, diffusion, meshing) plus ``export`` (URDF + meshes, measured here) and
-``total`` (wall time of generate + export). Median, p95 and mean over the prompts; the
-model load time is measured once.
+encoding, decoding, diffusion, meshing, export = URDF + meshes on disk, preview = the PNG
+drawn after them) plus ``generate`` (wall time of generation), ``to_urdf`` (generate +
+export: text in, URDF and meshes on disk — the speed target) and ``total`` (wall time
+including the preview). Median, p95 and mean over the prompts, ``to_urdf`` also by part
+count; the model load time is measured once.
 """
 from __future__ import annotations
 
@@ -88,6 +90,7 @@ def run_child(cfg: BenchConfig, loader: Optional[Callable] = None) -> dict:
     """The measurement itself (meant to run in a fresh process; see module docstring)."""
     import torch
     torch.set_num_threads(max(1, cfg.threads))
+    from model.core.runtime import release_free_memory
     from model.pipeline.api import GenerationConfig
     from .reference import freeform_prompts
     prompts = freeform_prompts(cfg.prompts_file)
@@ -123,17 +126,27 @@ def run_child(cfg: BenchConfig, loader: Optional[Callable] = None) -> dict:
             t = {k: float(v) for k, v in g.timings.items()}
             t["generate"] = time.perf_counter() - t1
             if cfg.export:
-                t2 = time.perf_counter()
-                gen.export(g, os.path.join(tmp, f"{i:03d}"))
-                t["export"] = time.perf_counter() - t2
+                gen.export(g, os.path.join(tmp, f"{i:03d}"))   # URDF + meshes, then preview
+                t["export"] = float(g.timings["export"])
+                t["preview"] = float(g.timings.get("preview", 0.0))
+            # the target figure: text in -> URDF and meshes on disk (the preview follows)
+            t["to_urdf"] = t["generate"] + t.get("export", 0.0)
             t["total"] = time.perf_counter() - t1
             t["parts"] = float(len(g.obj.parts))
             timings.append(t)
+            del g
+            release_free_memory()          # as the node does after every request
     parts = [t.pop("parts") for t in timings]
+    by_parts = {}
+    for name, lo, hi in (("1-3", 1, 3), ("4-6", 4, 6), ("7-9", 7, 9), ("10+", 10, 10 ** 6)):
+        sel = [t["to_urdf"] for t, n in zip(timings, parts) if lo <= n <= hi]
+        if sel:
+            by_parts[name] = {"n": len(sel), "to_urdf_median": float(np.median(sel))}
     return {"config": asdict(cfg), "checkpoint": cfg.checkpoint, "n": len(timings),
             "threads": cfg.threads, "cpu": _cpu_name(), "python": sys.version.split()[0],
             "load_seconds": load_s, "stages": stage_stats(timings),
             "parts_median": float(np.median(parts)) if parts else None,
+            "to_urdf_by_parts": by_parts,
             "peak_rss_mb": _rss_mb(), "rss_before_load_mb": rss_before,
             "rss_after_load_mb": rss_load, "failures": failures, "per_prompt": timings}
 

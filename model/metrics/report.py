@@ -138,6 +138,12 @@ def bench_markdown(bench: dict) -> str:
              "| stage | median s | p95 s | mean s |", "|---|---|---|---|"]
     for stage, s in bench["stages"].items():
         lines.append(f"| {stage} | {s['median']:.3f} | {s['p95']:.3f} | {s['mean']:.3f} |")
+    by = bench.get("to_urdf_by_parts") or {}
+    if by:
+        lines.append("")
+        lines.append("Text -> URDF + meshes on disk (`to_urdf`), median by part count: "
+                     + ", ".join(f"{k} parts {v['to_urdf_median']:.2f} s (n={v['n']})"
+                                 for k, v in by.items()) + ".")
     lines.append("")
     lines.append(f"Model load: {bench['load_seconds']:.2f} s. Peak memory (RSS high-water "
                  f"mark of the benchmark process): {bench['peak_rss_mb']:.0f} MB "

@@ -29,7 +29,7 @@ class GenerationConfig:
     device: str = "cpu"
     threads: int = 2                   # torch threads for SDF meshing and image encoding
     token_threads: int = 1             # ... for the token-sized networks (text, decoding, DDIM);
-                                       # one thread is ~3x faster there on 2 cores (core.threads)
+                                       # one thread is ~3x faster there on 2 cores (core.runtime)
     max_nodes: int = 32
     max_depth: int = 4
     max_children: int = 16

@@ -22,7 +22,7 @@ from typing import Optional, Union
 import numpy as np
 
 from model.core import ArticulatedObject, ObjectValidationError
-from model.core.threads import torch_threads
+from model.core.runtime import torch_threads
 from model.pipeline.api import (ExportResult, GeneratedObject, GenerationConfig,
                                 GenerationError)
 

