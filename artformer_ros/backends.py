@@ -42,8 +42,8 @@ class ModelBackend:
         return self.generator.export(result, out_dir, preview=False,
                                      mesh_uri=self._settings.mesh_uri)
 
-    def preview(self, result, exported) -> str:
-        return self.generator.write_preview(result, exported)
+    def preview(self, result, exported, interrupt=None):
+        return self.generator.write_preview(result, exported, interrupt=interrupt)
 
 
 class ExampleBackend:
@@ -95,7 +95,10 @@ def load_backend(settings: NodeSettings):
         import torch
 
         torch.set_num_threads(settings.threads)
+        from model.core.runtime import settle_after_load
         from model.pipeline.generator import Generator
 
-        return ModelBackend(Generator.load(settings.generation_config()), settings)
+        backend = ModelBackend(Generator.load(settings.generation_config()), settings)
+        settle_after_load()          # cheap per-request garbage collection from now on
+        return backend
     raise ValueError(f"unknown backend {settings.backend!r}")

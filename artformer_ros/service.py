@@ -11,9 +11,11 @@ is created with two marker files: ``.artformer_output`` (it is ours: only such f
 ``.partial`` (removed last, when everything is written). Folders still marked partial are
 not results: they are removed on abandon and at the next start. A shutdown never interrupts
 an export, so after a clean stop no partial folder exists. With the ``preview`` parameter,
-``preview.png`` is drawn into each sample folder right after the answer is published (the
-result names its path; the file appears atomically a moment later, or not at all if the node
-stops first).
+``preview.png`` is drawn into each sample folder after the answer is published, when no
+request is waiting, and put off again (between its three views) when one arrives (the
+result names its path; the file appears atomically a moment later, or not at all if the
+node stops first, retention removes the folder, or a burst pushes it out of the two newest
+pending pictures).
 """
 from __future__ import annotations
 
@@ -107,6 +109,9 @@ def owned_folders(root: str) -> tuple[list[str], list[str]]:
             is_partial = os.path.exists(os.path.join(path, PARTIAL_MARKER))
             (partial if is_partial else complete).append(path)
     return complete, partial
+
+
+MAX_PENDING_PREVIEWS = 2      # requests whose preview.png is still to be drawn
 
 
 class GenerationService:
@@ -249,11 +254,20 @@ class GenerationService:
             self._cond.wait_for(lambda: self._state != LOADING)
         while True:
             with self._cond:
-                self._cond.wait_for(lambda: self._queue or self._state == STOPPING)
+                # requests first; previews only when no request waits
+                self._cond.wait_for(lambda: self._queue or self._previews
+                                    or self._state == STOPPING)
                 if self._state == STOPPING:
                     return
-                job = self._queue.popleft()
+                job = self._queue.popleft() if self._queue else None
                 self._busy = job
+            if job is None:
+                task = self._previews.pop(0)
+                if not self._write_preview(*task):
+                    self._previews.insert(0, task)       # a request came in: serve it first
+                elif not self._previews:
+                    release_free_memory()
+                continue
             try:
                 result, urdf = self._run(job)
             except Exception as err:  # never let one request end the worker
@@ -264,23 +278,23 @@ class GenerationService:
                 with self._cond:
                     self._busy = None
             self._safe_emit(result, urdf)
-            self._write_previews()
             release_free_memory()
 
-    def _write_previews(self) -> None:
-        """preview.png of the request just published (the picture is for people; it does
-        not hold up robot_description). Written atomically; skipped when stopping."""
-        tasks, self._previews = self._previews, []
-        if not tasks:
-            return
+    def _write_preview(self, out, exp) -> bool:
+        """preview.png of a published request, drawn when the queue is empty and interrupted
+        (between its views) when a request arrives: the picture is for people and holds up a
+        request by one view at most. Written atomically; skipped when stopping or when
+        retention already removed the folder. False = interrupted, to be drawn later."""
         with self._export_lock:
-            for out, exp in tasks:
-                if self._state == STOPPING:
-                    return
-                try:
-                    self._backend.preview(out, exp)
-                except Exception as err:  # a picture must never cost the node
-                    log.warning("preview of %s failed: %s", exp.out_dir, err)
+            if self._state == STOPPING or not os.path.isdir(exp.out_dir):
+                return True
+            try:
+                done = self._backend.preview(
+                    out, exp, interrupt=lambda: bool(self._queue) or self._state == STOPPING)
+                return done is not None or self._state == STOPPING
+            except Exception as err:  # a picture must never cost the node
+                log.warning("preview of %s failed: %s", exp.out_dir, err)
+                return True
 
     def _seed_for(self, job: Job) -> int:
         if job.seed is not None:
@@ -312,6 +326,7 @@ class GenerationService:
                 return answer(job, "rejected", "abandoned: node shutting down before the "
                                                "result was written", **base), None
             folder = self._new_folder(job)
+            pending = len(self._previews)
             try:
                 exports = []
                 for k, out in enumerate(outs):
@@ -321,6 +336,9 @@ class GenerationService:
                     if self.settings.preview and hasattr(self._backend, "preview"):
                         exports[-1].preview_path = os.path.join(exports[-1].out_dir, "preview.png")
                         self._previews.append((out, exports[-1]))
+                # under sustained load keep only the newest pending pictures: each holds its
+                # object's meshes (tens of MB), and the node's memory must stay bounded
+                del self._previews[:max(0, len(self._previews) - MAX_PENDING_PREVIEWS)]
                 t_exp = time.monotonic()
                 result = self._done_result(job, seed, folder, outs, exports,
                                            {"queue_wait": t_start - job.received,
@@ -332,11 +350,11 @@ class GenerationService:
                     urdf = f.read()
                 os.unlink(os.path.join(folder, PARTIAL_MARKER))
             except GenerationError as err:
-                self._previews = []
+                del self._previews[pending:]
                 shutil.rmtree(folder, ignore_errors=True)
                 return answer(job, "error", f"generation failed: {err}", **base), None
             except Exception:
-                self._previews = []
+                del self._previews[pending:]
                 shutil.rmtree(folder, ignore_errors=True)
                 raise
             self._apply_retention()

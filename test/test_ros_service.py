@@ -249,3 +249,90 @@ def test_samples_are_exported_side_by_side(tmp_path):
         [OWNER_MARKER, RESULT_FILE, "sample_0", "sample_1", "sample_2"])
     assert h.svc.state == READY
     h.svc.stop(1)
+
+
+class PreviewBackend(ScriptedBackend):
+    """Records when previews are drawn relative to generations."""
+
+    def __init__(self):
+        super().__init__()
+        self.events = []
+
+    def generate(self, **kw):
+        self.events.append(("generate", kw["text"]))
+        return super().generate(**kw)
+
+    def preview(self, result, exported, interrupt=None):
+        self.events.append(("preview", result.prompt))
+        path = os.path.join(exported.out_dir, "preview.png")
+        with open(path, "wb") as f:
+            f.write(b"png")
+        return path
+
+
+def test_previews_follow_the_answer_and_wait_for_queued_requests(tmp_path):
+    h = Harness(tmp_path, backend=PreviewBackend(), preview=True, queue_size=8, retention=50)
+    h.backend.gate = threading.Event()
+    h.svc.start()
+    assert h.svc.wait_ready(5)
+    for k in range(3):
+        assert h.svc.submit(Job(f"r{k}", "text", text=f"p{k}"))
+    assert h.backend.started.wait(5)
+    h.backend.gate.set()
+    answers = h.wait_answers(3)
+    for res, _ in answers:   # every answer names its preview before the picture exists
+        assert res["preview_path"].endswith(os.path.join("sample_0", "preview.png"))
+    end = time.monotonic() + 5
+    while len(h.backend.events) < 5 and time.monotonic() < end:
+        time.sleep(0.01)
+    time.sleep(0.05)
+    # the three queued requests ran back to back; the pictures came when the queue was
+    # empty, for the newest MAX_PENDING_PREVIEWS (2) requests only: memory stays bounded
+    assert h.backend.events == [("generate", "p0"), ("generate", "p1"), ("generate", "p2"),
+                                ("preview", "p1"), ("preview", "p2")]
+    assert [os.path.isfile(r["preview_path"]) for r, _ in answers] == [False, True, True]
+    assert h.svc.stop(1)
+
+
+def test_preview_failure_is_logged_and_serving_continues(tmp_path):
+    backend = PreviewBackend()
+    backend.preview = lambda result, exported, interrupt=None: (_ for _ in ()).throw(
+        RuntimeError("no pixels"))
+    h = Harness(tmp_path, backend=backend, preview=True)
+    h.svc.start()
+    assert h.svc.wait_ready(5)
+    assert h.svc.submit(Job("a", "text", text="x"))
+    h.wait_answers(1)
+    time.sleep(0.1)
+    assert h.svc.submit(Job("b", "text", text="y"))
+    answers = h.wait_answers(2)
+    assert [r["status"] for r, _ in answers] == ["done", "done"]
+    assert h.svc.stop(1)
+
+
+def test_a_preview_yields_to_a_request_that_arrives_while_it_is_drawn(tmp_path):
+    class Slow(PreviewBackend):
+        def preview(self, result, exported, interrupt=None):
+            for view in range(3):           # like render_views: ask before each view
+                if interrupt():
+                    self.events.append(("preview-interrupted", result.prompt))
+                    return None
+                if result.prompt == "first" and view == 0 and not sent:
+                    sent.append(1)
+                    assert h.svc.submit(Job("second", "text", text="second"))
+                time.sleep(0.01)
+            return super().preview(result, exported)
+
+    sent = []
+    h = Harness(tmp_path, backend=Slow(), preview=True, retention=50)
+    h.svc.start()
+    assert h.svc.wait_ready(5)
+    assert h.svc.submit(Job("first", "text", text="first"))
+    h.wait_answers(2)
+    end = time.monotonic() + 5
+    while len(h.backend.events) < 5 and time.monotonic() < end:
+        time.sleep(0.01)
+    assert h.backend.events == [("generate", "first"), ("preview-interrupted", "first"),
+                                ("generate", "second"), ("preview", "first"),
+                                ("preview", "second")]
+    assert h.svc.stop(1)

@@ -34,10 +34,13 @@ def torch_threads(n: int | None) -> Iterator[None]:
 
 
 def release_free_memory() -> None:
-    """Hand freed heap pages back to the OS after a request (glibc ``malloc_trim``): meshing,
-    export and rendering leave hundreds of MB of free but mapped heap, which would otherwise
-    stay resident and grow with fragmentation (measured over 20 requests: peak 1.78 GB
-    without, 1.11 GB with). No-op where unavailable."""
+    """After a request: collect reference cycles, then hand freed heap pages back to the OS
+    (glibc ``malloc_trim``). trimesh meshes sit in reference cycles (their caches), so a
+    finished request's meshes are garbage only the cycle collector frees; its full pass runs
+    rarely on its own (measured: RSS +50 MB per request without ``gc.collect``, flat with
+    it). Meshing, export and rendering also leave hundreds of MB of free but mapped heap."""
+    import gc
+    gc.collect()
     global _malloc_trim
     if _malloc_trim is None:
         try:
@@ -48,3 +51,15 @@ def release_free_memory() -> None:
             _malloc_trim = False
     if _malloc_trim:
         _malloc_trim(0)
+
+
+def settle_after_load() -> None:
+    """For serving processes, once the model is loaded: collect, then move every object alive
+    now (the model, the encoders, the libraries: ~420k objects) to the collector's permanent
+    generation, so the full collection after each request looks at that request's objects
+    only (measured: 9 ms instead of 400 ms). Frozen objects are never collected, which is
+    what a loaded model wants; libraries that load a model and then unload it should not
+    call this."""
+    import gc
+    gc.collect()
+    gc.freeze()

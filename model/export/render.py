@@ -229,7 +229,7 @@ def _rasterise(tris: np.ndarray, cols: np.ndarray, closed: np.ndarray, eye: np.n
 
 def render_views(obj, ratios: Sequence[float] = (0.0, 0.5, 1.0), size=224, *,
                  options: Optional[RenderOptions] = None, seed: Optional[int] = None,
-                 simplify: bool = False) -> np.ndarray:
+                 simplify: bool = False, interrupt=None) -> Optional[np.ndarray]:
     """Render ``obj`` at each openness ratio; returns (len(ratios), H, W, 3) uint8.
 
     ``size``: int (square) or (H, W). ``options`` fixes camera / lighting / colours; with
@@ -237,6 +237,8 @@ def render_views(obj, ratios: Sequence[float] = (0.0, 0.5, 1.0), size=224, *,
     call share a camera framed on the union of the posed objects, so they are comparable.
     ``simplify``: cluster mesh vertices at half a (supersampled) pixel of the object's rest
     size first (previews of dense marching-cubes meshes; the dataset renders keep every face).
+    ``interrupt``: a callable asked before each view; when it returns True the rendering
+    stops and None is returned (a server yields to a waiting request).
     """
     H, W = (size, size) if np.ndim(size) == 0 else (int(size[0]), int(size[1]))
     if options is None:
@@ -268,6 +270,8 @@ def render_views(obj, ratios: Sequence[float] = (0.0, 0.5, 1.0), size=224, *,
     eye = centre + dist * _direction(options.azimuth, options.elevation)
     out = np.empty((len(ratios), H, W, 3), dtype=np.uint8)
     for k, r in enumerate(ratios):
+        if interrupt is not None and interrupt():
+            return None
         # previews: single precision halves the per-triangle arrays (sub-pixel differences)
         tris, cols, closed = _scene(obj, float(r), colours, geometry,
                                     np.float32 if simplify else np.float64)
@@ -280,14 +284,18 @@ def render_views(obj, ratios: Sequence[float] = (0.0, 0.5, 1.0), size=224, *,
 
 
 def write_preview(obj, path, *, ratios: Sequence[float] = (0.0, 0.5, 1.0), size: int = 320,
-                  options: Optional[RenderOptions] = None) -> str:
-    """PNG of the object at each ratio side by side (written atomically); returns the path."""
+                  options: Optional[RenderOptions] = None, interrupt=None) -> Optional[str]:
+    """PNG of the object at each ratio side by side (written atomically); returns the path,
+    or None when ``interrupt`` (see ``render_views``) stopped it before anything was written."""
     import io
 
     from PIL import Image
 
     from model.data.format import atomic_write_bytes
-    views = render_views(obj, ratios, size, options=options, simplify=True)   # (V, S, S, 3)
+    views = render_views(obj, ratios, size, options=options, simplify=True,
+                         interrupt=interrupt)                       # (V, S, S, 3)
+    if views is None:
+        return None
     gap = 4
     strip = np.full((size, len(views) * size + (len(views) - 1) * gap, 3), 255, dtype=np.uint8)
     for k, im in enumerate(views):

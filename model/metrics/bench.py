@@ -90,7 +90,7 @@ def run_child(cfg: BenchConfig, loader: Optional[Callable] = None) -> dict:
     """The measurement itself (meant to run in a fresh process; see module docstring)."""
     import torch
     torch.set_num_threads(max(1, cfg.threads))
-    from model.core.runtime import release_free_memory
+    from model.core.runtime import release_free_memory, settle_after_load
     from model.pipeline.api import GenerationConfig
     from .reference import freeform_prompts
     prompts = freeform_prompts(cfg.prompts_file)
@@ -107,6 +107,7 @@ def run_child(cfg: BenchConfig, loader: Optional[Callable] = None) -> dict:
     t0 = time.perf_counter()
     gen = loader(gcfg)
     load_s = time.perf_counter() - t0
+    settle_after_load()                    # as the node does (model.core.runtime)
     rss_load = _current_rss_mb()
     timings, failures = [], []
     with tempfile.TemporaryDirectory(prefix="artformer-bench-") as tmp:

@@ -276,14 +276,20 @@ class Generator:
             self.write_preview(result, out)
         return out
 
-    def write_preview(self, result: GeneratedObject, exported: ExportResult) -> str:
-        """preview.png (openness 0 / 0.5 / 1) into an exported folder; sets its path."""
+    def write_preview(self, result: GeneratedObject, exported: ExportResult,
+                      interrupt=None) -> Optional[str]:
+        """preview.png (openness 0 / 0.5 / 1) into an exported folder; sets its path. With
+        ``interrupt`` (asked between the views) it may stop early and return None."""
         from model.export.render import write_preview
 
         t = time.perf_counter()
-        exported.preview_path = write_preview(result.obj, Path(exported.out_dir) / "preview.png")
+        path = write_preview(result.obj, Path(exported.out_dir) / "preview.png",
+                             interrupt=interrupt)
+        if path is None:
+            return None
+        exported.preview_path = path
         result.timings["preview"] = time.perf_counter() - t
-        return exported.preview_path
+        return path
 
 
 def _collision_boxes(r, fitted, max_boxes: int = 32, min_coverage: float = 0.0,
