@@ -318,3 +318,20 @@ def test_simcheck_reports_collision_penetration(exported, objects, tmp_path):
                         collision=CollisionConfig(method="hull"))
     rep = check_urdf(res.urdf_path, objects["cabinet"])
     assert rep.ok and rep.sims["mujoco"].max_penetration > 0.1
+
+
+def test_folder_with_a_space_relative_uris_load_everywhere(objects, tmp_path, caplog):
+    """file:// URIs of a folder with a space need %20, which pybullet does not decode: the
+    exporter says so, and mesh_uri='relative' gives a URDF every simulator loads."""
+    import logging
+    folder = tmp_path / "with space"
+    with caplog.at_level(logging.WARNING, logger="model.export.urdf"):
+        export_object(objects["bottle"], folder / "file", preview=False,
+                      collision=CollisionConfig(method="hull"))
+    assert "pybullet does not" in caplog.text
+    res = export_object(objects["bottle"], folder / "rel", preview=False, mesh_uri="relative",
+                        collision=CollisionConfig(method="hull"))
+    xml = Path(res.urdf_path).read_text()
+    assert 'filename="./meshes/' in xml and "file://" not in xml
+    rep = check_urdf(res.urdf_path, objects["bottle"])
+    assert rep.ok, rep.summary()

@@ -155,8 +155,10 @@ def export_object(obj: ArticulatedObject, out_dir: os.PathLike, *, mesh_format: 
                   collision: CollisionConfig | None = None, name: str | None = None):
     """Write ``obj`` as a URDF folder at ``out_dir`` and return an ``ExportResult``.
 
-    ``mesh_uri``: "file" for absolute ``file://`` paths, or a prefix such as
-    ``"package://artformer_ros/objects/cabinet"`` that replaces ``out_dir`` in mesh URIs.
+    ``mesh_uri``: "file" for absolute ``file://`` paths (what a URDF on a ROS topic needs),
+    "relative" for ``meshes/<file>`` beside the URDF (simulators; survives moving the
+    folder), or a prefix such as ``"package://artformer_ros/objects/cabinet"`` that replaces
+    ``out_dir`` in mesh URIs.
     ``density`` in kg/m³ (default 600: wood / filled plastic). ``provenance`` (prompt, seed,
     checkpoint hash...) goes into the URDF comment and ``metadata.json``. The folder appears
     atomically: it is built beside ``out_dir`` and renamed into place (an existing folder is
@@ -230,10 +232,18 @@ def _slug(text: str) -> str:
 
 def _uri_base(mesh_uri: str, out_dir: Path) -> str:
     if mesh_uri == "file":
-        return out_dir.as_uri()             # file:///abs/out_dir
+        uri = out_dir.as_uri()              # file:///abs/out_dir, percent-encoded
+        if uri != "file://" + out_dir.as_posix():
+            log.warning("output path %s needs percent-escapes in file:// URIs; RViz and MuJoCo "
+                        "decode them but pybullet does not: export with mesh_uri='relative' "
+                        "for pybullet, or use a folder without spaces", out_dir)
+        return uri
+    if mesh_uri == "relative":
+        return "."                          # meshes/<file> beside the URDF (simulators)
     if mesh_uri.startswith("package://"):
         return mesh_uri.rstrip("/")
-    raise ValueError(f"mesh_uri must be 'file' or start with 'package://', got {mesh_uri!r}")
+    raise ValueError(f"mesh_uri must be 'file', 'relative' or start with 'package://', "
+                     f"got {mesh_uri!r}")
 
 
 def _replace_dir(tmp: Path, out_dir: Path) -> None:

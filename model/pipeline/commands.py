@@ -25,7 +25,8 @@ def _model_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--threads", type=int, default=2, help="torch CPU threads (2)")
     p.add_argument("--no-preview", action="store_true", help="skip preview.png")
     p.add_argument("--mesh-uri", default="file",
-                   help="'file' (absolute file:// paths) or a package:// prefix for mesh URIs")
+                   help="'file' (absolute file:// paths, for ROS), 'relative' (meshes/ beside "
+                        "the URDF, for simulators) or a package:// prefix for mesh URIs")
     p.add_argument("--json", action="store_true", help="print the result as JSON")
     p.add_argument("-v", "--verbose", action="store_true")
 
