@@ -45,8 +45,11 @@ class PreparedData:
 def _part_targets(root: Path, recs: list[fmt.ObjectRecord], targets, predict_z: bool,
                   cache_path: Optional[Path], progress: bool = True) -> dict[str, np.ndarray]:
     """Per object: geometry target of every part (P_gt (K,C,N) or raw z (K,Z)), cached."""
+    # the codebook layout is part of the key: the one_codebook ablation's view of the same
+    # prior gives (K, 1, C*N) targets, which a (K, C, N) cache must not stand in for
+    layout = getattr(getattr(targets, "cfg", None), "num_codebooks", "")
     key = f"{getattr(targets, 'name', 'targets')}:{getattr(targets, 'prior_path', '')}:" \
-          f"{getattr(targets, 'sdf_path', '')}:{'z' if predict_z else 'P'}"
+          f"{getattr(targets, 'sdf_path', '')}:{'z' if predict_z else f'P{layout}'}"
     cache = {}
     if cache_path is not None and cache_path.exists():
         d = torch.load(cache_path, map_location="cpu", weights_only=False)
