@@ -244,3 +244,55 @@ def test_init_from_checkpoint_fine_tunes(trained, tmp_path):
     assert ft["init"] == str(out / "transformer.pt") and ft["step"] == 1
     w0, w1 = src["state_dict"]["head_jt.weight"], ft["state_dict"]["head_jt.weight"]
     assert torch.allclose(w0, w1, atol=1e-6), "weights start from the given checkpoint"
+
+
+def test_own_inputs_feed_back_the_networks_teacher_forced_predictions(trained, tmp_path):
+    """Scheduled sampling: with share 1 every existing node carries what the network predicts
+    for it from its parent (ground-truth tree before that node's round); share 0 is a no-op;
+    the command trains with --own-inputs."""
+    from model.articulation.commands import main
+    from model.articulation.data import TextCache, collate, group_rounds, round_sample
+    from model.articulation.targets import StandInTargets
+    from model.articulation.train import make_batch, own_input_tokens, prepare_data
+    root, data, out = trained
+    am = ArticulationModel.load(out / "transformer.pt")
+    net, cfg = am.net, am.cfg
+    tg = StandInTargets(z_dim=cfg.z_dim, num_codebooks=cfg.num_codebooks,
+                        codebook_size=cfg.codebook_size, cs_dim=cfg.cs_dim)
+    ck = read_checkpoint(out / "transformer.pt")
+    pd = prepare_data(str(data), tg, stats=ck["stats"], label_table=ck["label_table"],
+                      progress=False)
+    items = pd.items["train"]
+    cache = TextCache(am.text_encoder_name)
+    cache.add([t for it in items for g in it.texts for t in g])
+    rng = np.random.default_rng(0)
+    groups = group_rounds(items, np.arange(len(items)), 16, 4, rng)[0]
+    batch, _, cond, cmask, idx = make_batch(items, groups, pd.geo_shape, cache, rng,
+                                            None, cfg.count_labels)
+    gt = batch.tokens.clone()
+    assert own_input_tokens(net, items, groups, batch, cond, cmask, "text", 0.0, rng,
+                            pd.geo_shape) == 0
+    assert torch.equal(batch.tokens, gt)
+    net.train()
+    assert own_input_tokens(net, items, groups, batch, cond, cmask, "text", 1.0, rng,
+                            pd.geo_shape) == len(groups)
+    assert net.training, "the training mode is restored"
+    # reference for the last round sample of the first object: its nodes one by one
+    u, (i, rounds) = 0, groups[0]
+    it, k = items[i], rounds[-1]
+    present = np.nonzero(it.rounds < k)[0]
+    net.eval()
+    with torch.no_grad():
+        for n, c in enumerate(present):
+            s = round_sample(it, int(it.rounds[c]))
+            b, _ = collate([s], pd.geo_shape, None, cfg.count_labels)
+            o, _ = net(b, cond[u:u + 1], cmask[u:u + 1], "text")
+            slot = int(np.nonzero(s["target"] == c)[0][0])
+            assert torch.allclose(batch.tokens[len(rounds) - 1, 1 + n], o["art"][0, slot],
+                                  atol=1e-5)
+    assert not torch.equal(batch.tokens, gt)
+    assert torch.equal(batch.tokens[:, 0], gt[:, 0]), "START stays"
+    assert main(["train", "transformer", "--data", str(data), "--prior", "none", "--preset",
+                 "tiny", "--out", str(tmp_path / "own"), "--steps", "3", "--own-inputs", "0.5",
+                 "--init", str(out / "transformer.pt"), "--no-progress"]) == 0
+    assert read_checkpoint(tmp_path / "own" / "transformer.pt")["train_config"]["own_inputs"] == 0.5

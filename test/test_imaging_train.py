@@ -21,12 +21,12 @@ def tiny_set(tmp_path_factory):
     return root
 
 
-def _run(root, trainable_blocks: int, steps: int):
+def _run(root, trainable_blocks: int, steps: int, own_inputs: float = 0.0):
     from model.articulation.config import preset
     from model.articulation.targets import StandInTargets
     from model.imaging.train import ImageRunConfig, ImageTrainConfig, train_image
     net, tc = preset("tiny", max_steps=steps, val_every=10_000, ckpt_every=10_000, threads=1,
-                     batch_size=8, lr=3e-3, cond_dropout=0.0)
+                     batch_size=8, lr=3e-3, cond_dropout=0.0, own_inputs=own_inputs)
     tg = StandInTargets(z_dim=net.z_dim, num_codebooks=net.num_codebooks,
                         codebook_size=net.codebook_size, cs_dim=net.cs_dim)
     rc = ImageRunConfig(data=str(root / "prepared"), renders=str(root / "renders"),
@@ -85,8 +85,9 @@ def test_fine_tuned_tail_is_saved_and_used(tiny_set):
     from model.encoders.image import ImageEncoder, ImageEncoderConfig
     from model.imaging.model import load_image_model
     from model.imaging.renders import view_paths
-    path, _, _ = _run(tiny_set, 1, 6)
+    path, _, _ = _run(tiny_set, 1, 6, own_inputs=1.0)   # also runs scheduled sampling
     im = load_image_model(path)
+    assert torch.load(path, map_location="cpu", weights_only=False)["train_config"]["own_inputs"] == 1.0
     assert im.encoder.config.trainable_blocks == 1
     frozen = ImageEncoder(ImageEncoderConfig())
     a = im.encoder.net._conv_head.weight

@@ -37,6 +37,9 @@ def _parser() -> argparse.ArgumentParser:
     ap.add_argument("--batch-size", type=int)
     ap.add_argument("--lr", type=float)
     ap.add_argument("--warmup", type=int, help="override warmup_steps")
+    ap.add_argument("--own-inputs", type=float, metavar="SHARE",
+                    help="scheduled sampling: share of the objects per batch whose nodes carry "
+                         "the network's own articulation predictions (default 0)")
     ap.add_argument("--seed", type=int)
     ap.add_argument("--threads", type=int)
     ap.add_argument("--text-encoder", help="'all-minilm-l6-v2' or a local transformers folder")
@@ -87,7 +90,7 @@ def main(argv: list[str]) -> int:
     from .config import preset
     overrides = {k: v for k, v in {"max_steps": args.steps, "max_minutes": args.minutes,
                                    "batch_size": args.batch_size, "lr": args.lr,
-                                   "warmup_steps": args.warmup,
+                                   "warmup_steps": args.warmup, "own_inputs": args.own_inputs,
                                    "seed": args.seed, "threads": args.threads,
                                    "text_encoder": args.text_encoder}.items() if v is not None}
     net_cfg, tc = preset(args.preset, args.ablation, **overrides)

@@ -88,6 +88,10 @@ class TrainConfig:
     w_plan: float = 1.0           # auxiliary: CE of the START plan head (parts per label)
     rounds_per_object: int = 4    # decoding rounds drawn per object per step (they share
                                   # one encoded description)
+    own_inputs: float = 0.0       # scheduled sampling: share of the objects of a batch whose
+                                  # existing nodes carry the network's own (teacher-forced)
+                                  # articulation predictions instead of the ground truth, as
+                                  # iterative decoding feeds them back (exposure bias)
 
 
 PRESETS: dict[str, tuple[ArticulationConfig, TrainConfig]] = {

@@ -124,7 +124,8 @@ def train_image(rc: ImageRunConfig) -> Path:
     from model.articulation.config import ArticulationConfig
     from model.articulation.network import ArticulationTransformer
     from model.articulation.data import group_rounds
-    from model.articulation.train import _CodebookView, label_cs_normalised, lr_at, prepare_data
+    from model.articulation.train import (_CodebookView, label_cs_normalised, lr_at,
+                                          own_input_tokens, prepare_data)
     from model.encoders.image import ImageEncoder, ImageEncoderConfig
 
     from .features import ViewFeatures, build_feature_cache
@@ -250,6 +251,9 @@ def train_image(rc: ImageRunConfig) -> Path:
         batch, targets, cond, cmask, idx = _image_batch(tr, groups, views, data.geo_shape, conds,
                                                         label_cs, cfg.count_labels)
         drop = torch.from_numpy(rng.random(len(groups)) < tc.cond_dropout)[idx]
+        if tc.own_inputs > 0:   # scheduled sampling, as in text training
+            own_input_tokens(net, tr, groups, batch, cond, cmask, "image", tc.own_inputs, rng,
+                             data.geo_shape)
         for g in opt.param_groups:
             g["lr"] = lr_at(step, tc, elapsed) * g["lr_mult"]
         _, L = net(batch, cond, cmask, "image", drop=drop, cond_index=idx, targets=targets,
@@ -341,6 +345,10 @@ def _parser():
     ap.add_argument("--minutes", type=float)
     ap.add_argument("--batch-size", type=int)
     ap.add_argument("--lr", type=float)
+    ap.add_argument("--warmup", type=int, help="override warmup_steps")
+    ap.add_argument("--own-inputs", type=float, metavar="SHARE",
+                    help="scheduled sampling: share of the objects per batch whose nodes carry "
+                         "the network's own articulation predictions (default 0)")
     ap.add_argument("--seed", type=int)
     ap.add_argument("--threads", type=int)
     ap.add_argument("--half", metavar="PATH", help="also write an fp16 copy (the shipped file)")
@@ -373,6 +381,7 @@ def cli_main(argv: list[str]) -> int:
     from model.articulation.config import preset
     overrides = {k: v for k, v in {"max_steps": args.steps, "max_minutes": args.minutes,
                                    "batch_size": args.batch_size, "lr": args.lr,
+                                   "warmup_steps": args.warmup, "own_inputs": args.own_inputs,
                                    "seed": args.seed, "threads": args.threads}.items()
                  if v is not None}
     net_cfg, tc = preset(args.preset, **overrides)
