@@ -97,6 +97,60 @@ def test_determinism_under_a_seed_and_variety_across_seeds():
     assert np.array_equal(g[0].parents, h[0].parents), "temperature 0 is greedy"
 
 
+def _planning_model(end_bias: float, plan_count: int) -> ArticulationModel:
+    """A random model with a plan head fixed to say ``plan_count`` parts of every label."""
+    from dataclasses import replace
+    am = _random_model(end_bias=end_bias, seed=2)
+    cfg = replace(am.cfg, count_labels=["body", "drawer", "handle", "door", "cap"], plan_head=True)
+    torch.manual_seed(2)
+    net = ArticulationTransformer(cfg)
+    with torch.no_grad():
+        net.head_end.weight.zero_()          # END logit = end_bias everywhere
+        net.head_end.bias.fill_(end_bias)
+        net.head_plan.weight.zero_()
+        bias = torch.full((len(cfg.count_labels), cfg.plan_max_count + 1), -10.0)
+        bias[:, plan_count] = 10.0
+        net.head_plan.bias.copy_(bias.flatten())
+    return ArticulationModel(net, {"stats": {k: v for k, v in _stats(am).items()},
+                                   "label_table": {"categories": [c for c, _ in LABELS],
+                                                   "labels": [l for _, l in LABELS],
+                                                   "cs": am.table_cs.numpy()},
+                                   "text_encoder": "all-minilm-l6-v2", "train_config": {}})
+
+
+def _stats(am: ArticulationModel) -> dict:
+    return {"tok_mean": am.tok_mean.numpy(), "tok_std": am.tok_std.numpy(),
+            "cs_mean": am.cs_mean.numpy(), "cs_std": am.cs_std.numpy()}
+
+
+def _label_counts(t: DecodedTree) -> dict:
+    return {lab: t.labels.count(lab) for lab in set(t.labels)}
+
+
+def test_follow_plan_holds_end_decisions_to_the_plan_head():
+    tok, mask = _cond(S=4)
+    # END head wants children everywhere; a plan of 0 parts per label allows only the root
+    greedy = _planning_model(end_bias=8.0, plan_count=0)
+    free = greedy.decode(tok, mask, seed=0, temperature=0, max_nodes=12)
+    held = greedy.decode(tok, mask, seed=0, temperature=0, max_nodes=12, follow_plan=True)
+    assert all(t.num_nodes == 12 for t in free)
+    assert [t.num_nodes for t in held] == [1, 1, 1, 1]
+    # END head hesitant (p ~ 27 %): the plan (2 of every label) adds children up to the plan
+    # and never beyond it; without the plan the greedy END head stops at the root
+    hesitant = _planning_model(end_bias=-1.0, plan_count=2)
+    free = hesitant.decode(tok, mask, seed=0, temperature=0, max_nodes=32)
+    held = hesitant.decode(tok, mask, seed=0, temperature=0, max_nodes=32, follow_plan=True)
+    assert [t.num_nodes for t in free] == [1, 1, 1, 1]
+    assert all(t.num_nodes > 1 for t in held)
+    for t in held:
+        _check_tree(t, 32, 4, 16)
+        assert max(_label_counts(t).values()) <= 2, t.labels   # the root counts too
+    # a confident END (p ~ 1e-13) is never overridden into a child
+    sure = _planning_model(end_bias=-30.0, plan_count=2)
+    assert [t.num_nodes for t in sure.decode(tok, mask, seed=0, temperature=0,
+                                             follow_plan=True)] == [1, 1, 1, 1]
+
+
 def test_editing_keeps_the_given_nodes_and_regrows():
     am = _random_model(end_bias=0.5, seed=2)
     tok, mask = _cond(S=2)

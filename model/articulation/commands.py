@@ -52,6 +52,8 @@ def _parser() -> argparse.ArgumentParser:
     ap.add_argument("--limit", type=int, default=0, help="--eval: at most this many objects")
     ap.add_argument("--eval-seed", type=int, default=0)
     ap.add_argument("--temperature", type=float, default=1.0)
+    ap.add_argument("--follow-plan", action="store_true",
+                    help="--eval: decode with END decisions held to the START plan head")
     ap.add_argument("--json", metavar="PATH", help="--eval: write the report as JSON")
     ap.add_argument("--no-progress", action="store_true")
     return ap
@@ -82,7 +84,8 @@ def main(argv: list[str]) -> int:
         lengths = None if args.lengths == "all" else args.lengths.split(",")
         rep = alignment_report(args.eval, args.data, split=args.split, lengths=lengths,
                                limit=args.limit, seed=args.eval_seed,
-                               temperature=args.temperature, progress=not args.no_progress)
+                               temperature=args.temperature, follow_plan=args.follow_plan,
+                               progress=not args.no_progress)
         print(json.dumps({k: v for k, v in rep.items() if k != "rows"}, indent=1))
         if args.json:
             Path(args.json).write_text(json.dumps(rep, indent=1))

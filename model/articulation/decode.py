@@ -81,6 +81,9 @@ class DecodedTree:
                 "num_parts": self.num_nodes}
 
 
+PLAN_ADD_MARGIN = 3.0   # follow_plan adds a child the END head gave p > sigmoid(-3) ~ 5 %
+
+
 class ArticulationModel:
     """A trained network with everything decoding needs (normalisation, label table, text
     encoder name). Build with ``ArticulationModel.load(path)``."""
@@ -140,13 +143,21 @@ class ArticulationModel:
     def decode(self, cond_tokens: torch.Tensor, cond_mask: torch.Tensor, *, seed: int = 0,
                max_nodes: int = 32, max_depth: int = 4, max_children: int = 16,
                temperature: float = 1.0, modality: str = "text",
-               keep: Union[ArticulatedObject, DecodedTree, None] = None) -> list[DecodedTree]:
+               keep: Union[ArticulatedObject, DecodedTree, None] = None,
+               follow_plan: bool = False) -> list[DecodedTree]:
         """cond_tokens (S, L, D_cond), cond_mask (S, L) -> S decoded trees.
 
         ``temperature`` scales the END logits and the joint-type logits before sampling
         (0 = greedy: END when p < 0.5, most likely joint type). ``keep`` (editing) starts
         every row from that partial tree: its nodes are kept unchanged and may get new
         children (missing subtrees are regenerated).
+
+        ``follow_plan`` (a deviation from the paper, off by default): the END decision of a
+        node is overridden where it contradicts the network's own START plan head (parts per
+        label of the whole object, read from the condition in the first round): a child whose
+        predicted label has already reached its planned count is not added, and a node that
+        would stop while its predicted child's label is still short of the plan adds it.
+        Needs a checkpoint trained with the plan head; ignored otherwise.
         """
         if max_nodes < 1 or max_depth < 0 or max_children < 0:
             raise ValueError("max_nodes must be >= 1, max_depth and max_children >= 0")
@@ -164,6 +175,8 @@ class ArticulationModel:
             out, _ = self.net(batch, None, None, modality, memory=memory,
                               cond_index=torch.tensor(active))
             for b, i in enumerate(active):
+                if follow_plan and "plan" in out and rows[i].get("plan") is None:
+                    rows[i]["plan"] = out["plan"][b].argmax(-1).tolist()   # (labels,)
                 self._grow(rows[i], {k: v[b] for k, v in out.items()}, gens[i],
                            max_nodes, max_depth, max_children, temperature)
         return [self._finish(r) for r in rows]
@@ -251,6 +264,15 @@ class ArticulationModel:
                 wants = bool(torch.rand((), generator=gen) < p_child)
             else:
                 wants = bool(logit > 0)
+            cs_raw = out["cs"][t].float()
+            li = int(self.nearest_label(cs_raw[None])[0])
+            count_i = self._count_index.get(self.table_labels[li], -1)
+            plan = row.get("plan")
+            if plan is not None and t > 0 and count_i >= 0:
+                # the plan overrides END for a label it counts (see decode); it only adds a
+                # child the END head finds plausible: a leaf's child head is untrained
+                short = row["lab"].count(count_i) < plan[count_i]
+                wants = short and (wants or float(logit) > -PLAN_ADD_MARGIN)
             if t == 0 and not row["tok"]:
                 wants = True   # an object has at least its root
             if capped or not wants:
@@ -263,10 +285,8 @@ class ArticulationModel:
                 jt = int(torch.multinomial(probs, 1, generator=gen))
             else:
                 jt = int(out["jt"][t].argmax())
-            cs_raw = out["cs"][t].float()
-            li = int(self.nearest_label(cs_raw[None])[0])
             cs = self.table_cs_n[li]
-            row["lab"].append(self._count_index.get(self.table_labels[li], -1))
+            row["lab"].append(count_i)
             row["tok"].append(out["art"][t].float().clone())
             row["jt"].append(jt)
             row["cs"].append(cs)

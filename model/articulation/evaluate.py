@@ -43,7 +43,8 @@ def compare(decoded: dict, truth: dict) -> dict:
 def alignment_report(ckpt: str, data_root: str, *, split: str = "test",
                      lengths: Optional[list[str]] = None, limit: int = 0, seed: int = 0,
                      temperature: float = 1.0, batch: int = 32, progress: bool = True,
-                     max_nodes: int = 32, max_depth: int = 4, max_children: int = 16) -> dict:
+                     max_nodes: int = 32, max_depth: int = 4, max_children: int = 16,
+                     follow_plan: bool = False) -> dict:
     from .decode import ArticulationModel
     am = ArticulationModel.load(ckpt)
     ids = fmt.split_ids(data_root, split)
@@ -67,7 +68,8 @@ def alignment_report(ckpt: str, data_root: str, *, split: str = "test",
         chunk = jobs[s:s + batch]
         tok, mask = am.encode_text([t for _, _, t in chunk])
         trees = am.decode(tok, mask, seed=seed + s, temperature=temperature,
-                          max_nodes=max_nodes, max_depth=max_depth, max_children=max_children)
+                          max_nodes=max_nodes, max_depth=max_depth, max_children=max_children,
+                          follow_plan=follow_plan)
         for (rec, L, text), tree in zip(chunk, trees):
             ok = compare(tree.summary(), record_structure(rec))
             row = {"id": rec.id, "length": L, "text": text, **ok,
@@ -80,6 +82,7 @@ def alignment_report(ckpt: str, data_root: str, *, split: str = "test",
         return float(np.mean([r[key] for r in rs])) if rs else float("nan")
     rep = {"checkpoint": str(ckpt), "data": str(data_root), "split": split,
            "objects": len(ids), "prompts": len(rows), "seed": seed, "temperature": temperature,
+           "follow_plan": follow_plan,
            "alignment": share(rows), "category": share(rows, "category"),
            "counts": share(rows, "counts"), "joint_types": share(rows, "joint_types"),
            "by_length": {L: share([r for r in rows if r["length"] == L]) for L in lengths},

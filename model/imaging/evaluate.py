@@ -20,6 +20,7 @@ log = logging.getLogger(__name__)
 def image_alignment_report(ckpt: str, data_root: str, render_root: str, *, split: str = "test",
                            views: Optional[list[int]] = None, limit: int = 0, seed: int = 0,
                            temperature: float = 1.0, batch: int = 32, progress: bool = True,
+                           follow_plan: bool = False,
                            max_nodes: int = 32, max_depth: int = 4, max_children: int = 16) -> dict:
     import torch
 
@@ -50,7 +51,8 @@ def image_alignment_report(ckpt: str, data_root: str, render_root: str, *, split
         tok, mask = im.encode([str(p) for *_, p in chunk])
         with torch.inference_mode():
             trees = im.am.decode(tok, mask, seed=seed + s, temperature=temperature, modality="image",
-                                 max_nodes=max_nodes, max_depth=max_depth, max_children=max_children)
+                                 max_nodes=max_nodes, max_depth=max_depth, max_children=max_children,
+                                 follow_plan=follow_plan)
         for (rec, k, r, path), tree in zip(chunk, trees):
             truth = record_structure(rec)
             ok = compare(tree.summary(), truth)
@@ -63,7 +65,7 @@ def image_alignment_report(ckpt: str, data_root: str, render_root: str, *, split
     cats = sorted({r["truth"]["category"] for r in rows})
     return {"checkpoint": str(ckpt), "data": str(data_root), "renders": str(render_root),
             "split": split, "objects": len(ids), "images": len(rows), "seed": seed,
-            "temperature": temperature,
+            "temperature": temperature, "follow_plan": follow_plan,
             "category": share(rows, "category"), "alignment": share(rows),
             "counts": share(rows, "counts"), "joint_types": share(rows, "joint_types"),
             "by_category": {c: {"category": share([r for r in rows if r["truth"]["category"] == c], "category"),

@@ -358,6 +358,8 @@ def _parser():
     ap.add_argument("--eval-views", default="all", help="--eval: view indices (comma list) or 'all'")
     ap.add_argument("--eval-seed", type=int, default=0)
     ap.add_argument("--temperature", type=float, default=1.0)
+    ap.add_argument("--follow-plan", action="store_true",
+                    help="--eval: decode with END decisions held to the START plan head")
     ap.add_argument("--json", metavar="PATH")
     ap.add_argument("--no-progress", action="store_true")
     return ap
@@ -371,7 +373,8 @@ def cli_main(argv: list[str]) -> int:
         views = None if args.eval_views == "all" else [int(v) for v in args.eval_views.split(",")]
         rep = image_alignment_report(args.eval, args.data, args.renders, split=args.split,
                                      views=views, limit=args.limit, seed=args.eval_seed,
-                                     temperature=args.temperature, progress=not args.no_progress)
+                                     temperature=args.temperature, follow_plan=args.follow_plan,
+                                     progress=not args.no_progress)
         print(json.dumps({k: v for k, v in rep.items() if k != "rows"}, indent=1))
         if args.json:
             Path(args.json).parent.mkdir(parents=True, exist_ok=True)

@@ -17,6 +17,12 @@ def _model_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--resolution", type=int, default=64, help="marching-cubes grid per part (64)")
     p.add_argument("--steps", type=int, default=50, help="DDIM steps of the shape prior (50)")
     p.add_argument("--guidance", type=float, default=1.0, help="classifier-free guidance (1 = off)")
+    p.add_argument("--structure-temperature", type=float, default=0.3,
+                   help="sampling temperature of the part tree (0 = greedy; default 0.3)")
+    p.add_argument("--no-plan", dest="follow_plan", action="store_const", const=(),
+                   default=("text",),
+                   help="decode END from the END head alone (the paper's decoding), without "
+                        "holding it to the START plan head")
     p.add_argument("--geometry", choices=("generate", "retrieve"), default="generate",
                    help="diffuse new part shapes, or retrieve the nearest training part")
     p.add_argument("--format", dest="mesh_format", choices=("obj", "stl", "glb"), default="obj")
@@ -35,7 +41,9 @@ def _config(a):
     from model.pipeline.api import GenerationConfig
     return GenerationConfig(checkpoint=a.checkpoint, resolution=a.resolution, steps=a.steps,
                             guidance=a.guidance, geometry=a.geometry, mesh_format=a.mesh_format,
-                            collision=a.collision, threads=a.threads)
+                            collision=a.collision, threads=a.threads,
+                            structure_temperature=a.structure_temperature,
+                            follow_plan=a.follow_plan)
 
 
 def _report(outs, results, as_json: bool) -> None:

@@ -180,7 +180,9 @@ class Generator:
         with torch_threads(cfg.token_threads):
             trees = decoder.decode(cond.expand(S, -1, -1), mask.expand(S, -1), seed=seed,
                                    max_nodes=cfg.max_nodes, max_depth=cfg.max_depth,
-                                   max_children=cfg.max_children, modality=modality, keep=keep)
+                                   max_children=cfg.max_children, modality=modality, keep=keep,
+                                   temperature=cfg.structure_temperature,
+                                   follow_plan=modality in cfg.follow_plan)
         timings["decoding"] = (time.perf_counter() - t) / S
 
         results = []
@@ -322,6 +324,8 @@ def validate_config(cfg: GenerationConfig) -> None:
         (1 <= cfg.steps <= 1000, f"steps must be in [1, 1000], got {cfg.steps}"),
         (cfg.guidance >= 0, f"guidance must be >= 0, got {cfg.guidance}"),
         (cfg.temperature > 0, f"temperature must be > 0, got {cfg.temperature}"),
+        (0 <= cfg.structure_temperature <= 10,
+         f"structure_temperature must be in [0, 10], got {cfg.structure_temperature}"),
         (cfg.geometry in ("generate", "retrieve"), f"geometry must be generate|retrieve, got {cfg.geometry!r}"),
         (cfg.mesh_format in ("obj", "stl", "glb"), f"mesh_format must be obj|stl|glb, got {cfg.mesh_format!r}"),
         (cfg.collision in ("auto", "cells", "vhacd", "hull", "none"),
