@@ -326,6 +326,8 @@ def validate_config(cfg: GenerationConfig) -> None:
         (cfg.temperature > 0, f"temperature must be > 0, got {cfg.temperature}"),
         (0 <= cfg.structure_temperature <= 10,
          f"structure_temperature must be in [0, 10], got {cfg.structure_temperature}"),
+        (set(cfg.follow_plan) <= {"text", "image"},
+         f"follow_plan lists modalities 'text' / 'image', got {cfg.follow_plan!r}"),
         (cfg.geometry in ("generate", "retrieve"), f"geometry must be generate|retrieve, got {cfg.geometry!r}"),
         (cfg.mesh_format in ("obj", "stl", "glb"), f"mesh_format must be obj|stl|glb, got {cfg.mesh_format!r}"),
         (cfg.collision in ("auto", "cells", "vhacd", "hull", "none"),
