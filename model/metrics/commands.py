@@ -58,6 +58,10 @@ def _eval_parser() -> argparse.ArgumentParser:
                         "export; tiny preset: hull)")
     p.add_argument("--steps", type=int, default=None, help="DDIM steps override")
     p.add_argument("--resolution", type=int, default=None, help="meshing resolution override")
+    p.add_argument("--structure-temperature", type=float, default=None,
+                   help="tree decoding temperature override (product default 0.3)")
+    p.add_argument("--no-plan", dest="follow_plan", action="store_const", const=False,
+                   default=None, help="the paper's END decoding (no plan head guidance)")
     p.add_argument("-v", "--verbose", action="store_true")
     return p
 
@@ -93,7 +97,8 @@ def eval_main(argv: list[str]) -> int:
         ablations[k] = v
     kw = dict(EVAL_PRESETS[args.preset])
     for name in ("n", "n_freeform", "points", "poses", "por_states", "diversity_prompts",
-                 "diversity_samples", "steps", "resolution", "collision"):
+                 "diversity_samples", "steps", "resolution", "collision",
+                 "structure_temperature", "follow_plan"):
         v = getattr(args, name)
         if v is not None:
             kw[name] = v

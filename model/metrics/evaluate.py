@@ -68,6 +68,8 @@ class EvalConfig:
                                                 # generator's own export), auto|hull|vhacd|none
     steps: Optional[int] = None                 # generation overrides (None = config default)
     resolution: Optional[int] = None
+    structure_temperature: Optional[float] = None   # tree decoding (None = product default)
+    follow_plan: Optional[bool] = None              # plan-guided END for text (None = default)
     text_encoder: str = "all-minilm-l6-v2"
     plots: bool = True
     progress: bool = False
@@ -114,6 +116,10 @@ def generate_method(name: str, checkpoint: Optional[str], prompts: list[str], cf
         gcfg.steps = cfg.steps
     if cfg.resolution is not None:
         gcfg.resolution = cfg.resolution
+    if cfg.structure_temperature is not None:
+        gcfg.structure_temperature = cfg.structure_temperature
+    if cfg.follow_plan is not None:
+        gcfg.follow_plan = ("text",) if cfg.follow_plan else ()
     if loader is None:
         from model.pipeline import Generator
         loader = Generator.load
@@ -217,6 +223,12 @@ class CloudCache:
         if k not in self._c:
             self._c[k] = (posed_clouds(obj, self.cfg.poses, self.cfg.points, self.cfg.seed), obj)
         return self._c[k][0]
+
+    def drop(self, objs) -> None:
+        """Forget the clouds (and the references) of these objects."""
+        for o in objs:
+            if o is not None:
+                self._c.pop(id(o), None)
 
 
 def _por_stats(objs: list, states: int) -> dict:
@@ -332,43 +344,59 @@ def run_eval(cfg: EvalConfig, loader: Optional[Callable] = None) -> dict:
     cr = [clouds(o) for o in refs]
     D_rr = id_matrix(cr, workers=cfg.workers, progress=cfg.progress)
 
-    methods: list[MethodOutput] = []
+    # Each method is generated, scored and dropped before the next one: a generated object
+    # with dense marching-cubes meshes holds ~25 MB, and six rows of 68 objects kept together
+    # reached 22 GB.
     ckpt = None if cfg.checkpoint in (None, "", "shipped") else cfg.checkpoint
     skipped = []
+    producers: list[tuple[str, Callable[[], Optional[MethodOutput]]]] = []
     if cfg.model:
-        methods.append(generate_method("model", ckpt, prompts, cfg, out / "objects", loader))
+        producers.append(("model", lambda: generate_method("model", ckpt, prompts, cfg,
+                                                           out / "objects", loader)))
         if cfg.part_retrieval:
-            pr = generate_method("model (part retrieval)", ckpt, prompts, cfg, out / "objects",
-                                 loader, geometry="retrieve")
-            if pr is None:
-                skipped.append("model (part retrieval): no retrieval bank in the prior checkpoint")
-            else:
-                methods.append(pr)
+            producers.append(("model (part retrieval)", lambda: generate_method(
+                "model (part retrieval)", ckpt, prompts, cfg, out / "objects", loader,
+                geometry="retrieve")))
     for name, path in cfg.ablations.items():
-        path = assemble_checkpoint(path, ckpt, out / "checkpoints" / _slug(name))
-        methods.append(generate_method(name, path, prompts, cfg, out / "objects", loader))
+        def ablation(name=name, path=path):
+            p = assemble_checkpoint(path, ckpt, out / "checkpoints" / _slug(name))
+            return generate_method(name, p, prompts, cfg, out / "objects", loader)
+        producers.append((name, ablation))
     if cfg.retrieval:
-        retr = Retriever(data, "train", cfg.text_encoder)
-        ids = retr.nearest(prompts)
-        objs = [data.object(i) for i in ids]
-        urdfs = [_export(o, out / "objects" / "retrieval" / f"{k:03d}", cfg.collision)
-                 if cfg.validity else None
-                 for k, o in enumerate(objs)]
-        m = MethodOutput("retrieval", objs, urdfs, list(prompts), extra={"retrieved_ids": ids})
-        methods.append(m)
+        def retrieval():
+            retr = Retriever(data, "train", cfg.text_encoder)
+            ids = retr.nearest(prompts)
+            objs = [data.object(i) for i in ids]
+            urdfs = [_export(o, out / "objects" / "retrieval" / f"{k:03d}", cfg.collision)
+                     if cfg.validity else None
+                     for k, o in enumerate(objs)]
+            return MethodOutput("retrieval", objs, urdfs, list(prompts),
+                                extra={"retrieved_ids": ids})
+        producers.append(("retrieval", retrieval))
     if cfg.train_floor:
-        train_ids = sorted(data.ids("train"))
-        k = min(len(train_ids), n_test)
-        pick = sorted(rng.choice(train_ids, size=k, replace=False).tolist()) if k else []
-        objs = [data.object(i) for i in pick]
-        methods.append(MethodOutput("train (floor)", objs, [], [None] * len(objs)))
+        def floor():
+            train_ids = sorted(data.ids("train"))
+            k = min(len(train_ids), n_test)
+            pick = sorted(rng.choice(train_ids, size=k, replace=False).tolist()) if k else []
+            objs = [data.object(i) for i in pick]
+            return MethodOutput("train (floor)", objs, [], [None] * len(objs))
+        producers.append(("train (floor)", floor))
 
+    from model.core.runtime import release_free_memory
     rows = []
-    for m in methods:
+    for name, produce in producers:
+        m = produce()
+        if m is None:
+            if name == "model (part retrieval)":
+                skipped.append("model (part retrieval): no retrieval bank in the prior checkpoint")
+            continue
         log.info("scoring %s", m.name)
         # the floor row has no prompts: all its objects stand against the references
         nt = len(m.objects) if m.name == "train (floor)" else n_test
         rows.append(score_method(m, refs, D_rr, clouds, cfg, nt))
+        clouds.drop(m.objects + [o for s in m.diversity_sets for o in s])
+        del m
+        release_free_memory()
     gt = MethodOutput("test (GT)", refs, [], test_prompts)
     gt_row = score_method(gt, [], None, clouds, EvalConfig(**{**asdict(cfg), "validity": False}),
                           n_test)
