@@ -354,6 +354,9 @@ def _parser():
     ap.add_argument("--half", metavar="PATH", help="also write an fp16 copy (the shipped file)")
     ap.add_argument("--eval", metavar="CKPT", help="category / structure accuracy of CKPT on --split")
     ap.add_argument("--split", default="test")
+    ap.add_argument("--pipeline", type=int, metavar="N", default=0,
+                    help="--eval: instead, run N test images through the whole generator "
+                         "(the --eval folder or 'shipped') and report POR, validity, structure")
     ap.add_argument("--limit", type=int, default=0)
     ap.add_argument("--eval-views", default="all", help="--eval: view indices (comma list) or 'all'")
     ap.add_argument("--eval-seed", type=int, default=0)
@@ -368,6 +371,16 @@ def _parser():
 def cli_main(argv: list[str]) -> int:
     import shlex
     args = _parser().parse_args(argv)
+    if args.eval and args.pipeline:
+        from .evaluate import image_pipeline_report
+        rep = image_pipeline_report(args.data, args.renders, split=args.split, n=args.pipeline,
+                                    checkpoint=None if args.eval == "shipped" else args.eval,
+                                    seed=args.eval_seed, progress=not args.no_progress)
+        print(json.dumps({k: v for k, v in rep.items() if k != "rows"}, indent=1))
+        if args.json:
+            Path(args.json).parent.mkdir(parents=True, exist_ok=True)
+            Path(args.json).write_text(json.dumps(rep, indent=1))
+        return 0
     if args.eval:
         from .evaluate import image_alignment_report
         views = None if args.eval_views == "all" else [int(v) for v in args.eval_views.split(",")]
