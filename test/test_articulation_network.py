@@ -193,3 +193,38 @@ def test_plan_head_loss():
     out, L = net(tb, torch.randn(1, 3, 384), torch.ones(1, 3, dtype=torch.bool), targets=t)
     assert out["plan"].shape == (1, 2, cfg.plan_max_count + 1)
     assert "plan" in L and torch.isfinite(L["plan"])
+
+
+def test_image_grid_positions_make_token_order_matter():
+    """Without a position grid the condition is a set (a permutation of the 49 image tokens
+    gives the same outputs); with cond_grid the layout of the feature map reaches the
+    decoder. Older configs (no cond_grid key) still load, without the embedding."""
+    from model.articulation.config import ArticulationConfig
+    from model.articulation.network import grid_sincos
+    from dataclasses import asdict
+    torch.manual_seed(0)
+    tb = _tree_batch([[-1, 0, 0]], seed=2)
+    cond = torch.randn(1, 49, 1280)
+    cmask = torch.ones(1, 49, dtype=torch.bool)
+    perm = torch.randperm(49)
+    outs = {}
+    for grid in ({}, {"image": [7, 7]}):
+        cfg, _ = preset("tiny", cond_grid=grid)
+        torch.manual_seed(0)
+        net = ArticulationTransformer(cfg).eval()
+        with torch.no_grad():
+            a, _ = net(tb, cond, cmask, "image")
+            b, _ = net(tb, cond[:, perm], cmask, "image")
+        outs[bool(grid)] = torch.allclose(a["art"], b["art"], atol=1e-5)
+        if grid:
+            with pytest.raises(ValueError, match="position grid"):
+                net(tb, cond[:, :48], cmask[:, :48], "image")
+            # text tokens (no grid for that modality) of any length still work
+            net(tb, torch.randn(1, 5, 384), torch.ones(1, 5, dtype=torch.bool), "text")
+    assert outs[False], "without positions the image tokens are an unordered set"
+    assert not outs[True], "with the grid embedding the token layout changes the outputs"
+    code = grid_sincos(7, 7, 32)[0]
+    assert code.shape == (49, 32) and len({tuple(r.tolist()) for r in code}) == 49
+    old = asdict(preset("tiny")[0])
+    old.pop("cond_grid")
+    assert ArticulationConfig.from_dict(old).cond_grid == {}

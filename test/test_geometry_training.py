@@ -135,6 +135,17 @@ def test_train_commands_api_and_resume(prim_data, tmp_path):
     save_checkpoint(wrong, "sdf", SDFAutoEncoder(cfg))
     with pytest.raises(CheckpointError, match="matching"):
         ShapeModel.load(wrong, tmp_path / "prior_fp16.pt")
+    # the one_codebook ablation's prior: one codebook of 64 codes instead of the preset's 4 x 16
+    one = tmp_path / "prior_one"
+    assert _cli("train", "prior", "--data", str(prim_data), "--out", str(one), "--preset", "tiny",
+                "--sdf", str(sdf_out / "ckpt.pt"), "--steps", "5", "--no-progress", "--threads",
+                "1", "--codebooks", "1", "--codebook-size", "64") == 0
+    shape1 = ShapeModel.load(sdf_out / "ckpt.pt", one / "ckpt.pt")
+    P1 = shape1.code_distribution(z)
+    assert P1.shape == (3, 1, 64) and torch.allclose(P1.sum(-1), torch.ones(3, 1), atol=1e-5)
+    z1 = shape1.sample_from_logits(torch.randn(3, 1, 64), cs, steps=3,
+                                   generator=torch.Generator().manual_seed(0))
+    assert z1.shape == z.shape
 
 
 def test_eval_and_bench_commands(prim_data, tmp_path, capsys):

@@ -39,6 +39,10 @@ class ArticulationConfig:
     plan_max_count: int = 20
     cond_dims: dict = field(default_factory=lambda: {"text": 384, "image": 1280})
     cond_layers: int = 1          # post-encoder layers over the condition tokens
+    cond_grid: dict = field(default_factory=dict)   # modality -> [rows, cols]: its tokens
+                                  # lie on that grid (the image's 7x7 feature map) and get a
+                                  # learned 2-D position embedding (sin-cos initialised);
+                                  # text states carry their positions already
     num_codebooks: int = 4        # codebook logits P: (num_codebooks, codebook_size)
     codebook_size: int = 128
     predict_z: bool = False       # True = ablation no_shape_prior: regress z directly
@@ -57,6 +61,7 @@ class ArticulationConfig:
                              f"checkpoint was written by a different code version")
         d = dict(d)
         d.setdefault("plan_head", False)   # checkpoints from before the plan head
+        d.setdefault("cond_grid", {})      # ... and before grid position embeddings
         return cls(**d)
 
 
@@ -117,7 +122,8 @@ def preset(name: str, ablation: str = "none", **overrides) -> tuple[Articulation
     if ablation not in ABLATIONS:
         raise ValueError(f"unknown ablation {ablation!r}; choose one of {ABLATIONS}")
     net, train = PRESETS[name]
-    net = replace(net, cond_dims=dict(net.cond_dims), count_labels=list(net.count_labels))
+    net = replace(net, cond_dims=dict(net.cond_dims), count_labels=list(net.count_labels),
+                  cond_grid=dict(net.cond_grid))
     train = replace(train)
     if ablation == "no_tpe":
         net.use_tpe = False

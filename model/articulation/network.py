@@ -164,6 +164,23 @@ class Block(nn.Module):
         return self.norms[-1](x + self.drop(self.ffn(x)))
 
 
+def grid_sincos(rows: int, cols: int, d: int) -> torch.Tensor:
+    """(1, rows*cols, d) 2-D sin-cos code, row-major like a flattened feature map: the first
+    half of the channels encodes the row, the second half the column."""
+    if d % 4:
+        raise ValueError(f"a 2-D sin-cos position code needs d % 4 == 0, got d = {d}")
+    q = d // 4
+    freq = 1.0 / (100.0 ** (torch.arange(q, dtype=torch.float32) / q))
+
+    def code(n: int) -> torch.Tensor:
+        a = torch.arange(n, dtype=torch.float32).unsqueeze(1) * freq      # (n, q)
+        return torch.cat([a.sin(), a.cos()], 1)                            # (n, d/2)
+
+    r, c = code(rows), code(cols)
+    grid = torch.cat([r.unsqueeze(1).expand(-1, cols, -1), c.unsqueeze(0).expand(rows, -1, -1)], -1)
+    return grid.reshape(1, rows * cols, d)
+
+
 class ConditionEncoder(nn.Module):
     """Per-modality input projection + a small post-encoder over the condition tokens, then a
     learned NULL token in front. NULL is never masked: it is what a dropped condition
@@ -175,6 +192,9 @@ class ConditionEncoder(nn.Module):
         d = cfg.d_model
         self.proj = nn.ModuleDict({m: nn.Sequential(nn.Linear(dim, d), nn.LayerNorm(d))
                                    for m, dim in cfg.cond_dims.items()})
+        self.cfg_grid = dict(cfg.cond_grid)
+        self.pos = nn.ParameterDict({m: nn.Parameter(grid_sincos(int(h), int(w), d))
+                                     for m, (h, w) in cfg.cond_grid.items()})
         self.null = nn.Parameter(torch.randn(1, 1, d) * 0.02)
         self.layers = nn.ModuleList([Block(d, cfg.n_heads, cfg.ffn_mult, cfg.dropout, False)
                                      for _ in range(cfg.cond_layers)])
@@ -188,6 +208,12 @@ class ConditionEncoder(nn.Module):
         U = tokens.shape[0]
         mask = mask.bool()
         x = self.proj[modality](tokens.float())                          # (U, L, d)
+        if modality in self.pos:
+            pe = self.pos[modality]
+            if pe.shape[1] != x.shape[1]:
+                raise ValueError(f"{modality} condition has {x.shape[1]} tokens, this model's "
+                                 f"position grid {self.cfg_grid[modality]} has {pe.shape[1]}")
+            x = x + pe
         enc_mask = mask.clone()
         enc_mask[:, 0] |= ~mask.any(1)        # an all-masked row: attend to something finite
         for layer in self.layers:

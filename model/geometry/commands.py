@@ -20,6 +20,8 @@ def _train_parser(kind: str) -> argparse.ArgumentParser:
     p.add_argument("--preset", default="small", help="tiny | small | paper (default small)")
     if kind == "prior":
         p.add_argument("--sdf", required=True, help="trained auto-encoder checkpoint")
+        p.add_argument("--codebooks", type=int, help="number of codebooks C (preset: 4)")
+        p.add_argument("--codebook-size", type=int, help="entries per codebook N (preset: 128)")
     p.add_argument("--steps", type=int, help="optimisation steps (default: the preset's)")
     p.add_argument("--epochs", type=float, help="alternative to --steps: passes over the parts")
     p.add_argument("--batch-size", type=int)
@@ -39,7 +41,9 @@ def _train(kind: str, argv: list[str]) -> int:
     args = RunArgs(data=a.data, out=a.out, preset=a.preset, steps=a.steps, epochs=a.epochs,
                    batch_size=a.batch_size, lr=a.lr, seed=a.seed, resume=a.resume,
                    threads=a.threads, progress=not a.no_progress,
-                   sdf=getattr(a, "sdf", None), argv=tuple(["artformer", *argv]))
+                   sdf=getattr(a, "sdf", None), n_codebooks=getattr(a, "codebooks", None),
+                   codebook_size=getattr(a, "codebook_size", None),
+                   argv=tuple(["artformer", *argv]))
     res = (train_sdf if kind == "sdf" else train_prior)(args)
     import os
     if int(os.environ.get("RANK", "0")) == 0:

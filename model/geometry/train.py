@@ -37,6 +37,8 @@ class RunArgs:
     threads: Optional[int] = None
     progress: bool = True
     sdf: Optional[str] = None            # prior only: the trained auto-encoder
+    n_codebooks: Optional[int] = None    # prior only: codebook layout override (the
+    codebook_size: Optional[int] = None  # one_codebook ablation: 1 x 512)
     argv: tuple[str, ...] = ()
 
 
@@ -248,6 +250,10 @@ def train_prior(args: RunArgs) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     ae, ae_ckpt = load_checkpoint(args.sdf, "sdf")
     cfg = replace(preset.prior, z_dim=ae.cfg.z_dim)
+    if args.n_codebooks is not None:
+        cfg = replace(cfg, n_codebooks=int(args.n_codebooks))
+    if args.codebook_size is not None:
+        cfg = replace(cfg, codebook_size=int(args.codebook_size))
     train = load_parts(args.data, "train", progress=dist.main and args.progress, with_sdf=False)
     try:
         val = load_parts(args.data, "val", with_sdf=False)

@@ -39,6 +39,8 @@ class ImageTrainConfig:
     tail_lr_mult: float = 0.1      # learning-rate factor of the fine-tuned encoder tail
     init: str = "model/weights/transformer_small.pt"   # text checkpoint to start from, or "none"
     eval_views: int = 0            # val loss: views per object (0 = all)
+    positions: bool = True         # 2-D position embedding of the 7x7 image tokens (without it
+                                   # cross-attention sees an unordered set of 49 features)
 
 
 @dataclass
@@ -161,6 +163,8 @@ def train_image(rc: ImageRunConfig) -> Path:
         cfg.num_codebooks, cfg.codebook_size = int(tg.num_codebooks), int(tg.codebook_size)
     if cfg.cond_dims.get("image") != 1280:
         cfg.cond_dims = {**cfg.cond_dims, "image": 1280}
+    grid = {k: v for k, v in cfg.cond_grid.items() if k != "image"}
+    cfg.cond_grid = {**grid, "image": [7, 7]} if ic.positions else grid
     data = prepare_data(rc.data, _CodebookView(rc.targets, cfg), predict_z=cfg.predict_z,
                         cache_dir=str(out / "cache"),
                         stats=None if init is None else init["stats"],
@@ -341,6 +345,8 @@ def _parser():
     ap.add_argument("--trainable-blocks", type=int, default=0, choices=(0, 1),
                     help="0 = frozen encoder (default), 1 = fine-tune its last block + head")
     ap.add_argument("--tail-lr-mult", type=float, default=0.1)
+    ap.add_argument("--no-positions", action="store_true",
+                    help="no 2-D position embedding of the 7x7 image tokens (the earlier model)")
     ap.add_argument("--steps", type=int)
     ap.add_argument("--minutes", type=float)
     ap.add_argument("--batch-size", type=int)
@@ -403,7 +409,7 @@ def cli_main(argv: list[str]) -> int:
     net_cfg, tc = preset(args.preset, **overrides)
     targets = make_targets(args.prior, args.sdf, net_cfg)
     ic = ImageTrainConfig(trainable_blocks=args.trainable_blocks, tail_lr_mult=args.tail_lr_mult,
-                          init=args.init)
+                          init=args.init, positions=not args.no_positions)
     if ic.init.lower() != "none" and not Path(ic.init).exists():
         print(f"artformer train image: --init {ic.init} does not exist; train the text model "
               f"first or pass --init none", flush=True)
