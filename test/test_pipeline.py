@@ -117,6 +117,19 @@ def test_checkpoint_folder_errors(tmp_path, tiny):
         Generator.load(GenerationConfig(checkpoint=str(bad)))
     with pytest.raises(GenerationError, match="resolution"):
         Generator.load(GenerationConfig(checkpoint=str(tiny), resolution=3))
+    # a one_codebook transformer (1 x C*N logits: same head size) beside a C x N prior is
+    # refused at load time, naming the prior it needs, not by a shape error mid-generation
+    import torch
+    mixed = tmp_path / "mixed"
+    mixed.mkdir()
+    for f in ("sdf.pt", "prior.pt"):
+        (mixed / f).write_bytes((Path(tiny) / f).read_bytes())
+    ck = torch.load(Path(tiny) / "transformer.pt", map_location="cpu", weights_only=False)
+    c, n = ck["config"]["num_codebooks"], ck["config"]["codebook_size"]
+    ck["config"].update(num_codebooks=1, codebook_size=c * n)
+    torch.save(ck, mixed / "transformer.pt")
+    with pytest.raises(GenerationError, match=f"1 x {c * n} codebook logits.*--codebooks 1"):
+        Generator.load(GenerationConfig(checkpoint=str(mixed)))
 
 
 def test_cli_generate_and_edit(tiny, tmp_path, capsys):

@@ -57,6 +57,21 @@ def find_checkpoints(folder: Union[str, os.PathLike, None]) -> dict[str, Optiona
     return found
 
 
+def check_codebooks(cfg, shape, paths: dict) -> None:
+    """The transformer's codebook logits P must have the prior's layout (C codebooks x N codes);
+    a transformer of the one_codebook ablation needs a prior trained with one codebook."""
+    if cfg.predict_z or shape.prior is None:
+        return
+    want = (int(shape.prior.cfg.n_codebooks), int(shape.prior.cfg.codebook_size))
+    have = (int(cfg.num_codebooks), int(cfg.codebook_size))
+    if have != want:
+        raise GenerationError(
+            f"{paths['transformer']} predicts {have[0]} x {have[1]} codebook logits but the shape "
+            f"prior {paths['prior']} has {want[0]} x {want[1]} codebooks; put the prior it was "
+            f"trained with beside it (`artformer train prior --codebooks {have[0]} "
+            f"--codebook-size {have[1]}` for the one_codebook ablation)")
+
+
 def file_digest(path: Path, n: int = 12) -> str:
     h = hashlib.sha256()
     with open(path, "rb") as f:
@@ -120,6 +135,7 @@ class Generator:
             raise
         except Exception as e:  # corrupt / mismatched checkpoints: say which stage
             raise GenerationError(f"could not load the model from {paths['transformer'].parent}: {e}") from e
+        check_codebooks(articulation.cfg, shape, paths)
         image_model = None
         if paths["image"] is not None:
             try:
