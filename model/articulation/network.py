@@ -192,7 +192,6 @@ class ConditionEncoder(nn.Module):
         d = cfg.d_model
         self.proj = nn.ModuleDict({m: nn.Sequential(nn.Linear(dim, d), nn.LayerNorm(d))
                                    for m, dim in cfg.cond_dims.items()})
-        self.cfg_grid = dict(cfg.cond_grid)
         self.pos = nn.ParameterDict({m: nn.Parameter(grid_sincos(int(h), int(w), d))
                                      for m, (h, w) in cfg.cond_grid.items()})
         self.null = nn.Parameter(torch.randn(1, 1, d) * 0.02)
@@ -212,7 +211,7 @@ class ConditionEncoder(nn.Module):
             pe = self.pos[modality]
             if pe.shape[1] != x.shape[1]:
                 raise ValueError(f"{modality} condition has {x.shape[1]} tokens, this model's "
-                                 f"position grid {self.cfg_grid[modality]} has {pe.shape[1]}")
+                                 f"position grid has {pe.shape[1]}")
             x = x + pe
         enc_mask = mask.clone()
         enc_mask[:, 0] |= ~mask.any(1)        # an all-masked row: attend to something finite

@@ -30,7 +30,8 @@ import torch
 log = logging.getLogger(__name__)
 
 IMAGE_SIZE = 224
-NUM_TOKENS = 49          # 7 × 7 feature map
+GRID = (7, 7)            # rows, cols of the final feature map
+NUM_TOKENS = GRID[0] * GRID[1]
 TOKEN_DIM = 1280
 NUM_BLOCKS = 16          # MBConv blocks of EfficientNet-Lite0
 MODEL_NAME = "efficientnet-lite0"

@@ -128,7 +128,7 @@ def train_image(rc: ImageRunConfig) -> Path:
     from model.articulation.data import group_rounds
     from model.articulation.train import (_CodebookView, label_cs_normalised, lr_at,
                                           own_input_tokens, prepare_data)
-    from model.encoders.image import ImageEncoder, ImageEncoderConfig
+    from model.encoders.image import GRID, TOKEN_DIM, ImageEncoder, ImageEncoderConfig
 
     from .features import ViewFeatures, build_feature_cache
     from .renders import load_render_manifest, rendered_ids
@@ -161,10 +161,10 @@ def train_image(rc: ImageRunConfig) -> Path:
     if init is None or not same_targets:
         cfg.cs_dim = int(tg.cs_dim)
         cfg.num_codebooks, cfg.codebook_size = int(tg.num_codebooks), int(tg.codebook_size)
-    if cfg.cond_dims.get("image") != 1280:
-        cfg.cond_dims = {**cfg.cond_dims, "image": 1280}
+    if cfg.cond_dims.get("image") != TOKEN_DIM:
+        cfg.cond_dims = {**cfg.cond_dims, "image": TOKEN_DIM}
     grid = {k: v for k, v in cfg.cond_grid.items() if k != "image"}
-    cfg.cond_grid = {**grid, "image": [7, 7]} if ic.positions else grid
+    cfg.cond_grid = {**grid, "image": list(GRID)} if ic.positions else grid
     data = prepare_data(rc.data, _CodebookView(rc.targets, cfg), predict_z=cfg.predict_z,
                         cache_dir=str(out / "cache"),
                         stats=None if init is None else init["stats"],

@@ -57,17 +57,17 @@ def find_checkpoints(folder: Union[str, os.PathLike, None]) -> dict[str, Optiona
     return found
 
 
-def check_codebooks(cfg, shape, paths: dict) -> None:
-    """The transformer's codebook logits P must have the prior's layout (C codebooks x N codes);
-    a transformer of the one_codebook ablation needs a prior trained with one codebook."""
+def check_codebooks(cfg, shape, ckpt: Path, prior: Path) -> None:
+    """A transformer's codebook logits P (text or image stage) must have the prior's layout
+    (C codebooks x N codes); the one_codebook ablation needs a prior trained with one codebook."""
     if cfg.predict_z or shape.prior is None:
         return
     want = (int(shape.prior.cfg.n_codebooks), int(shape.prior.cfg.codebook_size))
     have = (int(cfg.num_codebooks), int(cfg.codebook_size))
     if have != want:
         raise GenerationError(
-            f"{paths['transformer']} predicts {have[0]} x {have[1]} codebook logits but the shape "
-            f"prior {paths['prior']} has {want[0]} x {want[1]} codebooks; put the prior it was "
+            f"{ckpt} predicts {have[0]} x {have[1]} codebook logits but the shape "
+            f"prior {prior} has {want[0]} x {want[1]} codebooks; put the prior it was "
             f"trained with beside it (`artformer train prior --codebooks {have[0]} "
             f"--codebook-size {have[1]}` for the one_codebook ablation)")
 
@@ -135,12 +135,13 @@ class Generator:
             raise
         except Exception as e:  # corrupt / mismatched checkpoints: say which stage
             raise GenerationError(f"could not load the model from {paths['transformer'].parent}: {e}") from e
-        check_codebooks(articulation.cfg, shape, paths)
+        check_codebooks(articulation.cfg, shape, paths["transformer"], paths["prior"])
         image_model = None
         if paths["image"] is not None:
             try:
                 from model.imaging.model import load_image_model
                 image_model = load_image_model(paths["image"])
+                check_codebooks(image_model.am.cfg, shape, paths["image"], paths["prior"])
             except Exception as e:
                 log.warning("image model %s not loaded (%s); image requests will be refused",
                             paths["image"], e)
