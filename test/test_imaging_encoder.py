@@ -118,3 +118,31 @@ def test_fine_tuning_tail_is_trainable_and_trunk_frozen(cat):
     other = ImageEncoder(ImageEncoderConfig(trainable_blocks=1))
     other.load_tail_state_dict(state)
     assert torch.allclose(other(x), enc(x).detach(), atol=1e-5)
+
+
+def test_multiscale_tokens_add_the_folded_fine_map(cat):
+    import torch.nn.functional as F
+
+    from model.encoders.image import FINE_CHANNELS, FINE_SPLIT, TOKEN_DIM
+    base = get_image_encoder()
+    ms = ImageEncoder(ImageEncoderConfig(multiscale=True))
+    assert ms.dim == TOKEN_DIM + FINE_CHANNELS == 1728
+    x = preprocess(cat)
+    tok = ms(x)
+    assert tok.shape == (1, 49, 1728)
+    # the first 1280 channels are exactly the plain tokens
+    assert torch.allclose(tok[..., :TOKEN_DIM], base(x), atol=1e-5)
+    # the rest is the 14x14 block-10 map, each token the 2x2 cell under its 7x7 cell
+    fine = ms.features_at(x, FINE_SPLIT)
+    assert fine.shape == (1, 112, 14, 14)
+    r, c = 3, 5
+    cell = fine[0, :, 2 * r:2 * r + 2, 2 * c:2 * c + 2]                 # (112, 2, 2)
+    assert torch.allclose(tok[0, r * 7 + c, TOKEN_DIM:], cell.reshape(112, 4).reshape(-1), atol=1e-5)
+    assert torch.equal(F.pixel_unshuffle(fine, 2).flatten(2).transpose(1, 2), tok[..., TOKEN_DIM:])
+    # split run (trunk cache + tail) gives the same tokens; the tail refuses a missing fine map
+    h, f = ms.trunk_fine(x)
+    assert torch.allclose(ms.tail(h, fine=f), tok)
+    with pytest.raises(ValueError, match="14x14"):
+        ms.tail(h)
+    with pytest.raises(ValueError, match="multiscale"):
+        ImageEncoder(ImageEncoderConfig(multiscale=True, trainable_blocks=6))

@@ -21,7 +21,8 @@ def tiny_set(tmp_path_factory):
     return root
 
 
-def _run(root, trainable_blocks: int, steps: int, own_inputs: float = 0.0):
+def _run(root, trainable_blocks: int, steps: int, own_inputs: float = 0.0, multiscale=False,
+         init="none", out=None):
     from model.articulation.config import preset
     from model.articulation.targets import StandInTargets
     from model.imaging.train import ImageRunConfig, ImageTrainConfig, train_image
@@ -30,8 +31,9 @@ def _run(root, trainable_blocks: int, steps: int, own_inputs: float = 0.0):
     tg = StandInTargets(z_dim=net.z_dim, num_codebooks=net.num_codebooks,
                         codebook_size=net.codebook_size, cs_dim=net.cs_dim)
     rc = ImageRunConfig(data=str(root / "prepared"), renders=str(root / "renders"),
-                        out=str(root / f"run{trainable_blocks}"), net=net, train=tc,
-                        image=ImageTrainConfig(trainable_blocks=trainable_blocks, init="none"),
+                        out=str(out or root / f"run{trainable_blocks}"), net=net, train=tc,
+                        image=ImageTrainConfig(trainable_blocks=trainable_blocks, init=init,
+                                               multiscale=multiscale),
                         targets=tg, progress=False)
     return train_image(rc), tg, tc
 
@@ -97,6 +99,43 @@ def test_fine_tuned_tail_is_saved_and_used(tiny_set):
     t1, _ = im.encode(png)
     t0, _ = frozen.encode(png).states, None
     assert not torch.allclose(t1, t0)
+
+
+def test_multiscale_run_widens_a_plain_image_model(tiny_set):
+    """--multiscale from a 1280-d image checkpoint: the projection keeps its columns and gains
+    zero ones, so before training the network answers as the start model did; the run caches
+    the block-10 features and saves a model whose tokens are 1728-d."""
+    from model.encoders.image import FINE_SPLIT
+    from model.imaging.features import cache_path
+    from model.imaging.model import load_image_model
+    from model.imaging.renders import view_paths
+    from model.imaging.train import widen_image_projection
+    start, _, _ = _run(tiny_set, 0, 20)
+    path, _, _ = _run(tiny_set, 0, 4, multiscale=True, init=str(start),
+                      out=tiny_set / "run_ms")
+    assert cache_path(tiny_set / "renders", FINE_SPLIT).exists()
+    im0, im = load_image_model(start), load_image_model(path)
+    assert im.encoder.config.multiscale and im.am.cfg.cond_dims["image"] == 1728
+    png = str(view_paths(tiny_set / "renders", "cabinet")[0])
+    tokens, _ = im.encode(png)
+    assert tokens.shape == (1, 49, 1728)
+    trees = im.decode_image(png, samples=1, seed=0, max_nodes=6, temperature=0.0)
+    assert trees[0].num_nodes >= 1
+    # widening: same outputs as the start network on the first 1280 channels
+    sd0 = {k: v.float() for k, v in torch.load(start, map_location="cpu",
+                                                 weights_only=False)["state_dict"].items()}
+    own = im.am.net.state_dict()
+    key = "cond.proj.image.0.weight"
+    assert widen_image_projection(sd0, own) and sd0[key].shape == own[key].shape
+    assert torch.count_nonzero(sd0[key][:, 1280:]) == 0
+    net = type(im.am.net)(im.am.cfg).eval()
+    net.load_state_dict(sd0)
+    tok0, m0 = im0.encode(png)
+    with torch.inference_mode():
+        mem_wide, _ = net.cond(tokens, torch.ones(1, 49, dtype=torch.bool), "image")
+        mem_plain, _ = im0.am.net.eval().cond(tok0, m0, "image")
+    assert torch.allclose(mem_wide, mem_plain, atol=1e-4)
+    assert not widen_image_projection({key: torch.zeros(3, 5)}, {key: torch.zeros(4, 9)})
 
 
 def test_image_pipeline_report_runs_images_through_the_whole_generator(tiny_set, tmp_path):

