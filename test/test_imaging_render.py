@@ -7,12 +7,12 @@ import pytest
 from model.imaging.render import render_view, sample_views
 
 
-def write_prepared(root, objects: dict, splits: dict):
+def write_prepared(root, objects: dict, splits: dict, version: str = "test"):
     """A minimal prepared dataset (manifest, records, prepared meshes) of hand-built objects."""
     import trimesh
     from model.data.format import ObjectRecord, atomic_write_json, save_part_arrays, save_record
     atomic_write_json(root / "manifest.json", {
-        "format": 1, "data_version": "test", "source": "example", "seed": 0, "splits": splits,
+        "format": 1, "data_version": version, "source": "example", "seed": 0, "splits": splits,
         "labels": sorted({p.label for o in objects.values() for p in o.parts}),
         "categories": sorted({o.category for o in objects.values()})})
     for split, ids in splits.items():

@@ -22,7 +22,7 @@ def tiny_set(tmp_path_factory):
 
 
 def _run(root, trainable_blocks: int, steps: int, own_inputs: float = 0.0, multiscale=False,
-         init="none", out=None):
+         init="none", out=None, extra=()):
     from model.articulation.config import preset
     from model.articulation.targets import StandInTargets
     from model.imaging.train import ImageRunConfig, ImageTrainConfig, train_image
@@ -34,7 +34,7 @@ def _run(root, trainable_blocks: int, steps: int, own_inputs: float = 0.0, multi
                         out=str(out or root / f"run{trainable_blocks}"), net=net, train=tc,
                         image=ImageTrainConfig(trainable_blocks=trainable_blocks, init=init,
                                                multiscale=multiscale),
-                        targets=tg, progress=False)
+                        targets=tg, progress=False, extra=list(extra))
     return train_image(rc), tg, tc
 
 
@@ -136,6 +136,43 @@ def test_multiscale_run_widens_a_plain_image_model(tiny_set):
         mem_plain, _ = im0.am.net.eval().cond(tok0, m0, "image")
     assert torch.allclose(mem_wide, mem_plain, atol=1e-4)
     assert not widen_image_projection({key: torch.zeros(3, 5)}, {key: torch.zeros(4, 9)})
+
+
+def test_extra_training_sets_join_the_training_objects(tiny_set, tmp_path):
+    """--extra-train: every split of a second prepared set (own data version, own renders)
+    trains beside the main train split; its cached features are found under prefixed ids;
+    a set with the main version or other views is refused."""
+    import json
+
+    from model.core.example import example_objects
+    from model.imaging.features import ViewFeatures, load_feature_cache
+    from model.imaging.renders import render_dataset
+    from model.imaging.train import merge_view_features
+    objs = example_objects()
+    write_prepared(tmp_path / "xprep", objs, {"train": ["cabinet"], "val": [], "test": ["bottle"]},
+                   version="test-extra")
+    render_dataset(tmp_path / "xprep", tmp_path / "xrend", views=2, seed=7, workers=1)
+    out = tmp_path / "run_x"
+    path, _, _ = _run(tiny_set, 0, 6, out=out, extra=[(tmp_path / "xprep", tmp_path / "xrend")])
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["train_objects"] == 2 + 2 and summary["val_objects"] == 1
+    ck = torch.load(path, map_location="cpu", weights_only=False)
+    assert [(x["data_version"], x["objects"]) for x in ck["extra_train"]] == [("test-extra", 2)]
+    main = ViewFeatures(load_feature_cache(tiny_set / "renders"))
+    xf = ViewFeatures(load_feature_cache(tmp_path / "xrend"))
+    both = merge_view_features([("", main), ("x0:", xf)])
+    assert both.ids == main.ids + ["x0:" + i for i in xf.ids]
+    # the same object id, different renders (seed 7): rows come from the right set
+    assert torch.equal(both.batch(["x0:cabinet"], [1]), xf.batch(["cabinet"], [1]))
+    assert torch.equal(both.batch(["cabinet"], [1]), main.batch(["cabinet"], [1]))
+    assert not torch.equal(both.batch(["x0:cabinet"], [1]), both.batch(["cabinet"], [1]))
+    with pytest.raises(ValueError, match="distinct prefix"):
+        merge_view_features([("", main), ("", xf)])
+    with pytest.raises(ValueError, match="own version"):
+        _run(tiny_set, 0, 1, out=tmp_path / "bad1", extra=[(tiny_set / "prepared", tmp_path / "xrend")])
+    render_dataset(tmp_path / "xprep", tmp_path / "xrend3", views=3, seed=7, workers=1)
+    with pytest.raises(ValueError, match="views"):
+        _run(tiny_set, 0, 1, out=tmp_path / "bad2", extra=[(tmp_path / "xprep", tmp_path / "xrend3")])
 
 
 def test_image_pipeline_report_runs_images_through_the_whole_generator(tiny_set, tmp_path):

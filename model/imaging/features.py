@@ -45,7 +45,7 @@ def build_feature_cache(render_root: os.PathLike, ids: list[str], *, batch_size:
     if cache is not None and cache.get("render_version") != manifest["render_version"]:
         cache = None
     have = {} if cache is None else {i: k for k, i in enumerate(cache["ids"])}
-    ids = rendered_ids(render_root, ids)
+    ids = rendered_ids(render_root, list(dict.fromkeys(ids)))      # unique, in order
     todo = [i for i in ids if i not in have]
     if not todo and cache is not None:
         return cache

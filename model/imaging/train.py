@@ -57,6 +57,9 @@ class ImageRunConfig:
     targets: object = None         # PriorTargets / StandInTargets (model.articulation.targets)
     command: str = ""
     progress: bool = True
+    # more training objects: (prepared data, its render set) pairs; every split of them is
+    # used for training (validation and the held-out test stay those of ``data``)
+    extra: list = field(default_factory=list)
 
 
 class ImageConditions:
@@ -123,6 +126,54 @@ def evaluate_image_loss(net, items, geo_shape, conds: ImageConditions, tc, n_bat
         return _image_batch(items, groups, views, geo_shape, conds, label_cs, net.cfg.count_labels)
 
     return mean_losses(net, items, tc, n_batches, seed, "image", batch_fn)
+
+
+def merge_view_features(parts: list) -> "ViewFeatures":
+    """One ViewFeatures of several render sets: ``parts`` are (id prefix, ViewFeatures) with
+    the same views and cache split; ids become prefix + id."""
+    from .features import ViewFeatures
+    if len({(f.views, f.split, tuple(f.feats.shape[2:])) for _, f in parts}) != 1:
+        raise ValueError("render sets to merge differ in views or feature shape: " + ", ".join(
+            f"{p or 'main'}: {f.views} views, split {f.split}" for p, f in parts))
+    ids = [p + i for p, f in parts for i in f.ids]
+    if len(set(ids)) != len(ids):
+        raise ValueError("merged render sets share object ids; give each a distinct prefix")
+    return ViewFeatures({"ids": ids, "feats": torch.cat([f.feats for _, f in parts], 0),
+                         "split": parts[0][1].split})
+
+
+def _extra_items(rc: "ImageRunConfig", data, targets, predict_z: bool, cache_dir: Path):
+    """Training items of every extra (data, renders) pair, all splits, ids prefixed 'x<j>:'
+    and normalised with the main data's stats and label table; -> (items per pair, info)."""
+    import dataclasses
+
+    from model.articulation.train import prepare_data
+    from .renders import load_render_manifest, rendered_ids
+    main_manifest = load_render_manifest(rc.renders)
+    out, info = [], []
+    for j, (droot, rroot) in enumerate(rc.extra):
+        rman = load_render_manifest(rroot)
+        for k in ("render_version", "views", "size"):
+            if rman.get(k) != main_manifest.get(k):
+                raise ValueError(f"extra render set {rroot}: {k} {rman.get(k)!r} differs from "
+                                 f"{rc.renders}'s {main_manifest.get(k)!r}")
+        xd = prepare_data(droot, targets, predict_z=predict_z, splits=("train", "val", "test"),
+                          cache_dir=str(cache_dir), stats=data.stats,
+                          label_table=data.label_table, progress=rc.progress)
+        if xd.data_version == data.data_version:
+            raise ValueError(f"extra data {droot} has the main data's version "
+                             f"{data.data_version!r}; extra objects need their own version")
+        items = [it for s in ("train", "val", "test") for it in xd.items[s]]
+        have = set(rendered_ids(rroot, [it.id for it in items]))
+        prefix = f"x{j}:"
+        kept = [dataclasses.replace(it, id=prefix + it.id) for it in items if it.id in have]
+        if len(kept) < len(items):
+            log.warning("extra %s: %d of %d objects have no renders and are skipped", droot,
+                        len(items) - len(kept), len(items))
+        out.append((prefix, rroot, kept))
+        info.append({"data": str(droot), "renders": str(rroot), "data_version": xd.data_version,
+                     "objects": len(kept)})
+    return out, info
 
 
 def _init_from(path: str):
@@ -211,13 +262,29 @@ def train_image(rc: ImageRunConfig) -> Path:
     if len(tr) < len(tr_all):
         log.warning("%d of %d train objects have no renders and are skipped",
                     len(tr_all) - len(tr), len(tr_all))
+    view = _CodebookView(rc.targets, cfg)
+    extra, extra_info = _extra_items(rc, data, view, cfg.predict_z, out / "cache")
     t0 = time.time()
-    feats = ViewFeatures(build_feature_cache(rc.renders, [it.id for it in tr + va],
-                                             progress=rc.progress))
-    fine = None
-    if ic.multiscale:
-        fine = ViewFeatures(build_feature_cache(rc.renders, list(feats.index),
-                                                progress=rc.progress, split=FINE_SPLIT))
+
+    def features(root, ids, split=None):
+        kw = {} if split is None else {"split": split}
+        return ViewFeatures(build_feature_cache(root, ids, progress=rc.progress, **kw))
+
+    feats = features(rc.renders, [it.id for it in tr + va])
+    fine = features(rc.renders, list(feats.index), FINE_SPLIT) if ic.multiscale else None
+    if extra:
+        n0 = len(tr)
+        fparts, gparts = [("", feats)], [("", fine)]
+        for prefix, rroot, items in extra:
+            xf = features(rroot, [it.id[len(prefix):] for it in items])
+            fparts.append((prefix, xf))
+            if ic.multiscale:
+                gparts.append((prefix, features(rroot, list(xf.ids), FINE_SPLIT)))
+            tr = tr + items
+        feats = merge_view_features(fparts)
+        fine = merge_view_features(gparts) if ic.multiscale else None
+        log.info("extra training objects: %d (%s)", len(tr) - n0,
+                 ", ".join(f"{x['data_version']}: {x['objects']}" for x in extra_info))
     t_feats = time.time() - t0
     conds = ImageConditions(feats, encoder, precompute=ic.trainable_blocks == 0, fine=fine)
     log.info("data %s: %d train / %d val objects x %d views; features %.0f s",
@@ -256,6 +323,7 @@ def train_image(rc: ImageRunConfig) -> Path:
         extra = {"condition": "image", "targets": getattr(rc.targets, "name", "?"),
                  "image_encoder": {"config": asdict(encoder.config), "tail": tail_sd},
                  "image_train_config": asdict(ic), "renders": render_info,
+                 "extra_train": extra_info,
                  "init": ic.init if init is not None else "none",
                  "elapsed": time.time() - t_loop, "history": history, "ablation": "none"}
         save_checkpoint(path, net, stats=data.stats, label_table=data.label_table,
@@ -334,6 +402,7 @@ def train_image(rc: ImageRunConfig) -> Path:
     summary = {"steps": step, "train_minutes": (time.time() - t_loop) / 60,
                "total_minutes": (time.time() - t_start) / 60, "feature_seconds": t_feats,
                "train_objects": len(tr), "val_objects": len(va), "views": feats.views,
+               "extra_train": extra_info,
                "trainable_blocks": ic.trainable_blocks, "final": final}
     (out / "history.json").write_text(json.dumps(history, indent=1))
     (out / "summary.json").write_text(json.dumps(summary, indent=1))
@@ -384,6 +453,10 @@ def _parser():
                          "1280-d image checkpoint the projection is widened with zeros")
     ap.add_argument("--no-positions", action="store_true",
                     help="no 2-D position embedding of the 7x7 image tokens (the earlier model)")
+    ap.add_argument("--extra-train", nargs=2, action="append", default=[],
+                    metavar=("DATA", "RENDERS"),
+                    help="more training objects: a prepared dataset with its own data version "
+                         "and its render set (all its splits train; repeatable)")
     ap.add_argument("--steps", type=int)
     ap.add_argument("--minutes", type=float)
     ap.add_argument("--batch-size", type=int)
@@ -455,7 +528,8 @@ def cli_main(argv: list[str]) -> int:
     command = "artformer train image " + " ".join(shlex.quote(a) for a in argv)
     path = train_image(ImageRunConfig(data=args.data, renders=args.renders, out=args.out,
                                       net=net_cfg, train=tc, image=ic, targets=targets,
-                                      command=command, progress=not args.no_progress))
+                                      command=command, progress=not args.no_progress,
+                                      extra=[tuple(x) for x in args.extra_train]))
     if args.half:
         write_half(path, Path(args.half))
         print(f"fp16 copy: {args.half}")
