@@ -105,4 +105,3 @@ class ViewFeatures:
         """-> (B, C, H, W) float32."""
         rows = torch.tensor([self.index[i] for i in ids])
         return self.feats[rows, torch.as_tensor(views)].float()
-

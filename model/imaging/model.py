@@ -1,7 +1,7 @@
 """Loading and using an image-conditioned transformer checkpoint (the pipeline's entry point).
 
     im = load_image_model("model/weights/image_small.pt")   # or None = the shipped file
-    tokens, mask = im.encode("photo.png")                    # (1, 49, 1280), (1, 49)
+    tokens, mask = im.encode("photo.png")                    # (1, 49, D), (1, 49); D = 1280 (1728 multiscale)
     trees = im.decode_image("photo.png", samples=2, seed=0)  # list[DecodedTree]
     obj = trees[0].to_object()
 
@@ -39,9 +39,9 @@ class ImageArticulationModel:
 
     @torch.inference_mode()
     def encode(self, images: Union[ImageLike, list]) -> tuple[torch.Tensor, torch.Tensor]:
-        """One image or a list → tokens (B, 49, 1280), mask (B, 49) bool."""
+        """One image or a list → tokens (B, 49, D), mask (B, 49) bool."""
         x = preprocess(images, self.encoder.config.image_size, self.encoder.config.background)
-        tokens = self.encoder(x)                                        # (B, 49, 1280)
+        tokens = self.encoder(x)                                        # (B, 49, D)
         return tokens, torch.ones(tokens.shape[:2], dtype=torch.bool)
 
     @torch.inference_mode()
@@ -83,7 +83,7 @@ def load_image_model(path: Union[str, os.PathLike, None] = None) -> ImageArticul
 
 def encode_image_condition(image: ImageLike, model: Optional[ImageArticulationModel] = None
                            ) -> tuple[torch.Tensor, torch.Tensor]:
-    """One image → (tokens (1, 49, 1280), mask (1, 49)); with ``model`` its (fine-tuned) encoder."""
+    """One image → (tokens (1, 49, D), mask (1, 49)); with ``model`` its (fine-tuned) encoder."""
     if model is None:
         from model.encoders.image import encode_image_condition as frozen
         return frozen(image)
