@@ -17,9 +17,8 @@ import time
 import torch
 
 from model.articulation.evaluate import compare, record_structure
-from model.data import format as fmt
+from model.imaging.evaluate import held_out_views
 from model.imaging.model import load_image_model
-from model.imaging.renders import rendered_ids, view_paths
 
 
 def structure_key(summary: dict) -> str:
@@ -41,12 +40,11 @@ def main() -> None:
     torch.set_num_threads(args.threads)
 
     im = load_image_model(args.checkpoint)
-    jobs = [(fmt.load_record(args.data, i), p)
-            for i in rendered_ids(args.renders, fmt.split_ids(args.data, args.split))
-            for p in view_paths(args.renders, i)[:args.views]]
+    _, jobs = held_out_views(args.data, args.renders, split=args.split,
+                             views=list(range(args.views)))
     hits = collections.Counter()
     t0 = time.time()
-    for n, (rec, path) in enumerate(jobs):
+    for n, (rec, _, _, path) in enumerate(jobs):
         tok, mask = im.encode([str(path)])
         with torch.inference_mode():
             greedy = im.am.decode(tok, mask, seed=0, temperature=0.0, modality="image")[0].summary()

@@ -18,6 +18,26 @@ import numpy as np
 log = logging.getLogger(__name__)
 
 
+def held_out_views(data_root: str, render_root: str, *, split: str = "test",
+                   views: Optional[list[int]] = None, limit: int = 0) -> tuple[list[str], list[tuple]]:
+    """The rendered objects of a split and one job per selected view:
+    (ids, [(record, view index, openness, image path), ...])."""
+    from model.data import format as fmt
+
+    from .renders import rendered_ids, view_paths, view_specs
+    ids = rendered_ids(render_root, fmt.split_ids(data_root, split))
+    if limit:
+        ids = ids[:limit]
+    jobs = []
+    for i in ids:
+        rec = fmt.load_record(data_root, i)
+        paths, specs = view_paths(render_root, i), view_specs(render_root, i)
+        for k in (views if views is not None else range(len(paths))):
+            if k < len(paths):
+                jobs.append((rec, k, specs[k].openness, paths[k]))
+    return ids, jobs
+
+
 def image_alignment_report(ckpt: str, data_root: str, render_root: str, *, split: str = "test",
                            views: Optional[list[int]] = None, limit: int = 0, seed: int = 0,
                            temperature: float = 1.0, batch: int = 32, progress: bool = True,
@@ -26,22 +46,11 @@ def image_alignment_report(ckpt: str, data_root: str, render_root: str, *, split
     import torch
 
     from model.articulation.evaluate import compare, record_structure
-    from model.data import format as fmt
 
     from .model import load_image_model
-    from .renders import rendered_ids, view_paths, view_specs
 
     im = load_image_model(ckpt)
-    ids = rendered_ids(render_root, fmt.split_ids(data_root, split))
-    if limit:
-        ids = ids[:limit]
-    jobs = []    # (record, view index, openness, path)
-    for i in ids:
-        rec = fmt.load_record(data_root, i)
-        paths, specs = view_paths(render_root, i), view_specs(render_root, i)
-        for k in (views if views is not None else range(len(paths))):
-            if k < len(paths):
-                jobs.append((rec, k, specs[k].openness, paths[k]))
+    ids, jobs = held_out_views(data_root, render_root, split=split, views=views, limit=limit)
     rows = []
     rng = range(0, len(jobs), batch)
     if progress:
