@@ -192,3 +192,90 @@ def test_image_pipeline_report_runs_images_through_the_whole_generator(tiny_set,
     assert rep["validity"] == 1.0          # the sphere parts load and move in all simulators
     assert set(row) >= {"category", "counts", "joint_types", "all", "timings"}
     assert "image_encoding" in row["timings"]
+
+
+def test_count_head_learns_counts_and_holds_decoding_to_them(tiny_set, tmp_path):
+    """`artformer train image-counts`: a count head over the cached 7x7 map learns the
+    per-label counts of its training renders, is stored in the image checkpoint and loaded
+    with it, and the decoder never adds a part beyond its plan; damage is reported clearly."""
+    import json
+
+    from model.data import format as fmt
+    from model.imaging.counts import cli_main, count_targets
+    from model.imaging.model import ImageModelError, load_image_model
+    from model.imaging.renders import view_paths
+
+    image_ckpt, _, _ = _run(tiny_set, 0, 6, out=tmp_path / "img")
+    labels = load_image_model(image_ckpt).am.cfg.count_labels
+    assert labels
+    out = tmp_path / "counts"
+    assert cli_main(["--image", str(image_ckpt), "--data", str(tiny_set / "prepared"),
+                     "--renders", str(tiny_set / "renders"), "--out", str(out),
+                     "--epochs", "300", "--batch-size", "4", "--threads", "1"]) == 0
+    ck = torch.load(out / "image.pt", map_location="cpu", weights_only=False)
+    rec = ck["count_head"]["train"]
+    assert rec["command"].startswith("artformer train image-counts") and rec["seed"] == 0
+    assert rec["data_versions"] == ["test"] and rec["train_objects"] == 2
+    assert rec["chosen"]["val_exact"] == 1.0        # the val bottle is also a train object
+    assert json.loads((out / "count_history.json").read_text())["chosen"] == rec["chosen"]
+
+    im = load_image_model(out / "image.pt")
+    assert im.counter is not None and im.counter.cfg.labels == labels
+    png = str(view_paths(tiny_set / "renders", "cabinet")[0])
+    tokens, mask, plan = im.condition(png)
+    truth = count_targets([fmt.load_record(tiny_set / "prepared", "cabinet")], labels, 20)
+    assert tokens.shape == (1, 49, 1280) and torch.equal(plan, truth)
+    t_plain, _ = load_image_model(image_ckpt).encode(png)
+    assert torch.allclose(tokens, t_plain, atol=1e-5)   # one pass gives the same tokens
+
+    for tree in im.decode_image(png, samples=3, seed=0, max_nodes=16, temperature=1.0):
+        counts = tree.summary()["counts"]
+        root = tree.labels[0]
+        for lab, n in counts.items():
+            assert n <= int(truth[0, labels.index(lab)]) + (lab == root), (lab, counts)
+    # a plan of zeros: nothing beyond the root; a plan of the wrong shape is refused
+    zero = torch.zeros(2, len(labels), dtype=torch.long)
+    trees = im.am.decode(tokens.expand(2, -1, -1), mask.expand(2, -1), modality="image", plan=zero)
+    assert [t.num_nodes for t in trees] == [1, 1]
+    with pytest.raises(ValueError, match="plan must be"):
+        im.am.decode(tokens, mask, modality="image", plan=torch.zeros(1, len(labels) + 1))
+
+    ck["count_head"]["state_dict"].pop(next(iter(ck["count_head"]["state_dict"])))
+    torch.save(ck, tmp_path / "broken.pt")
+    with pytest.raises(ImageModelError, match="count head cannot be loaded"):
+        load_image_model(tmp_path / "broken.pt")
+    ck = torch.load(out / "image.pt", map_location="cpu", weights_only=False)
+    ck["count_head"]["config"]["labels"] = list(reversed(labels))
+    torch.save(ck, tmp_path / "relabelled.pt")
+    with pytest.raises(ImageModelError, match="counts"):
+        load_image_model(tmp_path / "relabelled.pt")
+    # a text checkpoint has no image head to count for
+    assert cli_main(["--image", str(tmp_path / "missing.pt")]) == 2
+
+
+def test_generator_follows_the_image_count_head(tiny_set, tmp_path):
+    """Image requests through the product decode to the count head's plan (here: a head
+    that counts zero of everything, so only the root part is made)."""
+    from model.imaging.counts import CountHead, CountHeadConfig
+    from model.pipeline import GenerationConfig, Generator
+    from test_ros_model import _tiny_checkpoints
+
+    labels = ["body", "cap", "door", "drawer", "handle"]
+    folder = _tiny_checkpoints(tmp_path / "ckpt", count_labels=labels)
+    ck = torch.load(folder / "image.pt", map_location="cpu", weights_only=False)
+    head = CountHead(CountHeadConfig(labels=labels, max_count=4))
+    with torch.no_grad():
+        last = head.body[-1]
+        last.weight.zero_()
+        last.bias.copy_(torch.tensor([10.0, 0, 0, 0, 0] * len(labels)))   # count 0 wins
+    ck["count_head"] = {"config": {**vars(head.cfg)}, "state_dict": head.state_dict(), "train": {}}
+    torch.save(ck, folder / "image.pt")
+    png = str(sorted((tiny_set / "renders" / "objects" / "cabinet").glob("*.png"))[0])
+    kw = dict(checkpoint=str(folder), resolution=16, steps=2, structure_temperature=1.0)
+    gen = Generator.load(GenerationConfig(follow_plan=("text", "image"), **kw))
+    assert gen.image_model.counter is not None
+    sizes = [len(gen.generate(image=png, seed=s)[0].obj.parts) for s in range(3)]
+    assert sizes == [1, 1, 1]
+    free = Generator.load(GenerationConfig(follow_plan=(), **kw))     # --no-plan
+    assert max(len(free.generate(image=png, seed=s)[0].obj.parts) for s in range(3)) > 1
+    assert gen.generate(text="a cabinet with two doors", seed=0)[0].obj.parts   # text unaffected

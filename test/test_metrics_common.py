@@ -39,7 +39,7 @@ def build_prepared(root: Path, n_train: int = 6, n_test: int = 3, seed: int = 11
 
 
 def make_tiny_checkpoints(folder, seed: int = 0, end_bias: float = -1.0,
-                          ablation: str = "none") -> Path:
+                          ablation: str = "none", count_labels: tuple = ()) -> Path:
     """transformer.pt / sdf.pt / prior.pt with random weights at the tiny presets, wired so
     the pipeline's Generator loads them (codebooks and c_s sizes agree across stages).
     ``end_bias`` keeps random trees small (a negative END logit bias = few children)."""
@@ -65,6 +65,7 @@ def make_tiny_checkpoints(folder, seed: int = 0, end_bias: float = -1.0,
     cfg, _ = preset("tiny", ablation, codebook_size=geo.prior.codebook_size,
                     num_codebooks=1 if ablation == "one_codebook" else geo.prior.n_codebooks,
                     cs_dim=geo.prior.cs_dim)
+    cfg.count_labels = list(count_labels)      # plan labels (child counts, START plan head)
     net = ArticulationTransformer(cfg)
     with torch.no_grad():
         net.head_end.bias.fill_(end_bias)

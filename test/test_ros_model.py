@@ -39,13 +39,13 @@ def _sphere_decoder(path):
     save_checkpoint(path, "sdf", ae)
 
 
-def _tiny_checkpoints(folder):
+def _tiny_checkpoints(folder, **kw):
     """transformer/sdf/prior (the metrics tests' helper, SDF decoder fitted to a sphere) + an
     image stage built from the same random transformer (an image checkpoint is a transformer
     checkpoint with an image condition and the frozen EfficientNet-Lite0 config)."""
     from test_metrics_common import make_tiny_checkpoints
 
-    make_tiny_checkpoints(folder, seed=0)
+    make_tiny_checkpoints(folder, seed=0, **kw)
     _sphere_decoder(folder / "sdf.pt")
     ck = torch.load(folder / "transformer.pt", map_location="cpu", weights_only=False)
     ck.update(condition="image", image_encoder={"config": {}, "tail": {}})

@@ -144,7 +144,7 @@ class ArticulationModel:
                max_nodes: int = 32, max_depth: int = 4, max_children: int = 16,
                temperature: float = 1.0, modality: str = "text",
                keep: Union[ArticulatedObject, DecodedTree, None] = None,
-               follow_plan: bool = False) -> list[DecodedTree]:
+               follow_plan: bool = False, plan=None) -> list[DecodedTree]:
         """cond_tokens (S, L, D_cond), cond_mask (S, L) -> S decoded trees.
 
         ``temperature`` scales the END logits and the joint-type logits before sampling
@@ -158,6 +158,9 @@ class ArticulationModel:
         predicted label has already reached its planned count is not added, and a node that
         would stop while its predicted child's label is still short of the plan adds it.
         Needs a checkpoint trained with the plan head; ignored otherwise.
+
+        ``plan`` (S, len(count_labels)) integer counts from elsewhere (the image count head,
+        model.imaging.counts) replaces the START plan head's and is always followed.
         """
         if max_nodes < 1 or max_depth < 0 or max_children < 0:
             raise ValueError("max_nodes must be >= 1, max_depth and max_children >= 0")
@@ -165,6 +168,13 @@ class ArticulationModel:
         cond_tokens = cond_tokens.float()
         gens = [torch.Generator().manual_seed(int(seed) + i) for i in range(S)]
         rows = [self._initial_row(keep, max_nodes) for _ in range(S)]
+        if plan is not None:
+            plan = torch.as_tensor(plan, dtype=torch.long)
+            want = (S, len(self.cfg.count_labels or []))
+            if tuple(plan.shape) != want or want[1] == 0:
+                raise ValueError(f"plan must be (rows, count labels) = {want}, got {tuple(plan.shape)}")
+            for r, p in zip(rows, plan.tolist()):
+                r["plan"] = p
         memory = self.net.cond(cond_tokens, cond_mask, modality)   # encoded once, every round
         max_rounds = max_nodes + 2
         for _ in range(max_rounds):

@@ -302,6 +302,18 @@ class ImageEncoder(torch.nn.Module):
             h = torch.cat([h, torch.nn.functional.pixel_unshuffle(fine.to(h.dtype), 2)], 1)
         return h.flatten(2).transpose(1, 2)                           # (B, 49, dim)
 
+    def tokens_and_features(self, x: torch.Tensor, at: int) -> tuple[torch.Tensor, torch.Tensor]:
+        """One pass → (tokens (B, 49, dim), the features entering block ``at``), e.g. the
+        192×7×7 map the image count head reads (model.imaging.counts)."""
+        if not FINE_SPLIT <= at <= NUM_BLOCKS:
+            raise ValueError(f"features can be taken between blocks {FINE_SPLIT} and {NUM_BLOCKS}")
+        fine = self.features_at(x, FINE_SPLIT)                        # (B, 112, 14, 14)
+        h = fine
+        with torch.no_grad():
+            for block in self.net._blocks[FINE_SPLIT:at]:
+                h = block(h)
+        return self.tail(h, start=at, fine=fine if self.config.multiscale else None), h
+
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         """(B, 3, 224, 224) normalised batch → (B, 49, dim) tokens."""
         h, fine = self.trunk_fine(x)

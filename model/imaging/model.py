@@ -2,8 +2,12 @@
 
     im = load_image_model("model/weights/image_small.pt")   # or None = the shipped file
     tokens, mask = im.encode("photo.png")                    # (1, 49, D), (1, 49); D = 1280 (1728 multiscale)
+    tokens, mask, plan = im.condition("photo.png")           # + (1, labels) count-head counts or None
     trees = im.decode_image("photo.png", samples=2, seed=0)  # list[DecodedTree]
     obj = trees[0].to_object()
+
+With a count head (model.imaging.counts, ``artformer train image-counts``) ``decode_image``
+holds the END decisions to its per-label counts (``count_plan=False`` turns that off).
 
 ``im.am`` is a ``model.articulation.ArticulationModel`` (decoding, label table, editing), so
 everything downstream (shape prior, export) is the same as for text.
@@ -31,23 +35,41 @@ class ImageModelError(RuntimeError):
 class ImageArticulationModel:
     """An articulation model whose condition is an image (EfficientNet-Lite0 tokens)."""
 
-    def __init__(self, am, encoder: ImageEncoder, ckpt: dict):
+    def __init__(self, am, encoder: ImageEncoder, ckpt: dict, counter=None):
         self.am = am
         self.encoder = encoder.eval()
+        self.counter = counter                    # CountHead or None
         self.meta = {k: ckpt.get(k) for k in ("data_version", "seed", "command", "step",
                                               "renders", "init", "image_train_config")}
+        if counter is not None:
+            self.meta["count_head"] = (ckpt["count_head"].get("train") or {}).get("command")
 
     @torch.inference_mode()
+    def condition(self, images: Union[ImageLike, list]
+                  ) -> tuple[torch.Tensor, torch.Tensor, Optional[torch.Tensor]]:
+        """One image or a list → tokens (B, 49, D), mask (B, 49) bool and the count head's
+        per-label counts (B, len(count_labels)), or None without a count head."""
+        x = preprocess(images, self.encoder.config.image_size, self.encoder.config.background)
+        if self.counter is None:
+            tokens, plan = self.encoder(x), None                        # (B, 49, D)
+        else:
+            tokens, h = self.encoder.tokens_and_features(x, self.counter.cfg.split)
+            plan = self.counter.predict(h)
+        return tokens, torch.ones(tokens.shape[:2], dtype=torch.bool), plan
+
     def encode(self, images: Union[ImageLike, list]) -> tuple[torch.Tensor, torch.Tensor]:
         """One image or a list → tokens (B, 49, D), mask (B, 49) bool."""
-        x = preprocess(images, self.encoder.config.image_size, self.encoder.config.background)
-        tokens = self.encoder(x)                                        # (B, 49, D)
-        return tokens, torch.ones(tokens.shape[:2], dtype=torch.bool)
+        tokens, mask, _ = self.condition(images)
+        return tokens, mask
 
     @torch.inference_mode()
-    def decode_image(self, image: ImageLike, *, samples: int = 1, seed: int = 0, **kwargs):
-        """One image → ``samples`` decoded trees (kwargs go to ArticulationModel.decode)."""
-        tokens, mask = self.encode(image)
+    def decode_image(self, image: ImageLike, *, samples: int = 1, seed: int = 0,
+                     count_plan: bool = True, **kwargs):
+        """One image → ``samples`` decoded trees (kwargs go to ArticulationModel.decode);
+        with a count head (and ``count_plan``) END decisions follow its counts."""
+        tokens, mask, plan = self.condition(image)
+        if plan is not None and count_plan:
+            kwargs["plan"] = plan.expand(samples, -1)
         return self.am.decode(tokens.expand(samples, -1, -1), mask.expand(samples, -1),
                               seed=seed, modality="image", **kwargs)
 
@@ -78,7 +100,17 @@ def load_image_model(path: Union[str, os.PathLike, None] = None) -> ImageArticul
     if enc_info.get("tail"):
         encoder.load_tail_state_dict({k: v.float() for k, v in enc_info["tail"].items()})
     encoder.requires_grad_(False)
-    return ImageArticulationModel(am, encoder, ckpt)
+    counter = None
+    if ckpt.get("count_head") is not None:
+        from .counts import CountHeadError, load_count_head
+        try:
+            counter = load_count_head(ckpt["count_head"], list(am.cfg.count_labels or []))
+        except CountHeadError as e:
+            raise ImageModelError(f"{p}: {e}") from e
+        if encoder.split < counter.cfg.split:
+            raise ImageModelError(f"{p}: the count head reads block {counter.cfg.split}, which "
+                                  f"this checkpoint's encoder fine-tuned")
+    return ImageArticulationModel(am, encoder, ckpt, counter)
 
 
 def encode_image_condition(image: ImageLike, model: Optional[ImageArticulationModel] = None

@@ -479,6 +479,8 @@ def _parser():
     ap.add_argument("--temperature", type=float, default=1.0)
     ap.add_argument("--follow-plan", action="store_true",
                     help="--eval: decode with END decisions held to the START plan head")
+    ap.add_argument("--no-count-plan", action="store_true",
+                    help="--eval: ignore the checkpoint's count head (decode END freely)")
     ap.add_argument("--json", metavar="PATH")
     ap.add_argument("--no-progress", action="store_true")
     return ap
@@ -503,6 +505,7 @@ def cli_main(argv: list[str]) -> int:
         rep = image_alignment_report(args.eval, args.data, args.renders, split=args.split,
                                      views=views, limit=args.limit, seed=args.eval_seed,
                                      temperature=args.temperature, follow_plan=args.follow_plan,
+                                     count_plan=not args.no_count_plan,
                                      progress=not args.no_progress)
         print(json.dumps({k: v for k, v in rep.items() if k != "rows"}, indent=1))
         if args.json:

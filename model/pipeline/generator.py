@@ -178,14 +178,14 @@ class Generator:
             prompt = check_prompt(text)
             with torch_threads(cfg.token_threads):
                 cond, mask = self.articulation.encode_text([prompt])       # (1, L, D), (1, L)
-            modality, decoder = "text", self.articulation
+            modality, decoder, counts = "text", self.articulation, None
             timings["text_encoding"] = time.perf_counter() - t
         else:
             if self.image_model is None:
                 raise GenerationError("this model has no image stage (no image*.pt checkpoint)")
             from model.encoders.image import ImageInputError
             try:
-                cond, mask = self.image_model.encode(image)                 # (1, 49, 1280)
+                cond, mask, counts = self.image_model.condition(image)      # (1, 49, 1280)
             except ImageInputError as e:
                 raise GenerationError(f"bad image: {e}") from e
             prompt = image if isinstance(image, str) else "<image>"
@@ -194,12 +194,18 @@ class Generator:
 
         t = time.perf_counter()
         S = int(samples)
+        # text follows the transformer's START plan head; an image its model's count head
+        # (without one it decodes freely: the START plan head reads images worse)
+        plan = None
+        if modality == "image" and modality in cfg.follow_plan and counts is not None:
+            plan = counts.expand(S, -1)
         with torch_threads(cfg.token_threads):
             trees = decoder.decode(cond.expand(S, -1, -1), mask.expand(S, -1), seed=seed,
                                    max_nodes=cfg.max_nodes, max_depth=cfg.max_depth,
                                    max_children=cfg.max_children, modality=modality, keep=keep,
                                    temperature=cfg.structure_temperature,
-                                   follow_plan=modality in cfg.follow_plan)
+                                   follow_plan=modality == "text" and "text" in cfg.follow_plan,
+                                   plan=plan)
         timings["decoding"] = (time.perf_counter() - t) / S
 
         results = []
