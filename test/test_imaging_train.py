@@ -205,17 +205,25 @@ def test_count_head_learns_counts_and_holds_decoding_to_them(tiny_set, tmp_path)
     from model.imaging.model import ImageModelError, load_image_model
     from model.imaging.renders import view_paths
 
+    from model.core.example import example_objects
+    from model.imaging.renders import render_dataset
+
     image_ckpt, _, _ = _run(tiny_set, 0, 6, out=tmp_path / "img")
     labels = load_image_model(image_ckpt).am.cfg.count_labels
     assert labels
+    # extra objects: every split of a second set trains too (here the bottle again)
+    write_prepared(tmp_path / "xprep", example_objects(), {"train": [], "val": [], "test": ["bottle"]},
+                   version="test-extra")
+    render_dataset(tmp_path / "xprep", tmp_path / "xrend", views=2, seed=7, workers=1)
     out = tmp_path / "counts"
     assert cli_main(["--image", str(image_ckpt), "--data", str(tiny_set / "prepared"),
                      "--renders", str(tiny_set / "renders"), "--out", str(out),
+                     "--extra-train", str(tmp_path / "xprep"), str(tmp_path / "xrend"),
                      "--epochs", "300", "--batch-size", "4", "--threads", "1"]) == 0
     ck = torch.load(out / "image.pt", map_location="cpu", weights_only=False)
     rec = ck["count_head"]["train"]
     assert rec["command"].startswith("artformer train image-counts") and rec["seed"] == 0
-    assert rec["data_versions"] == ["test"] and rec["train_objects"] == 2
+    assert rec["data_versions"] == ["test", "test-extra"] and rec["train_objects"] == 3
     assert rec["chosen"]["val_exact"] == 1.0        # the val bottle is also a train object
     assert json.loads((out / "count_history.json").read_text())["chosen"] == rec["chosen"]
 
@@ -249,7 +257,7 @@ def test_count_head_learns_counts_and_holds_decoding_to_them(tiny_set, tmp_path)
     torch.save(ck, tmp_path / "relabelled.pt")
     with pytest.raises(ImageModelError, match="counts"):
         load_image_model(tmp_path / "relabelled.pt")
-    # a text checkpoint has no image head to count for
+    # a missing image checkpoint is refused
     assert cli_main(["--image", str(tmp_path / "missing.pt")]) == 2
 
 

@@ -186,15 +186,13 @@ def train_count_head(image_ckpt: str, data_root: str, render_root: str, out: str
         Y = count_targets([fmt.load_record(root, i) for i in ids], labels, cfg.max_count)
         return X, Y, fmt.load_manifest(root).get("data_version", "?")
 
-    Xs, Ys, versions = [], [], []
-    X, Y, v = load(data_root, render_root, ("train",))
-    Xs.append(X), Ys.append(Y), versions.append(v)
+    sets = [load(data_root, render_root, ("train",))]
     for droot, rroot in extra or []:
-        X, Y, v = load(droot, rroot, ("train", "val", "test"))
-        if X.shape[1:] != Xs[0].shape[1:]:
-            raise ValueError(f"{rroot}: features {tuple(X.shape[1:])} differ from "
-                             f"{render_root}'s {tuple(Xs[0].shape[1:])}")
-        Xs.append(X), Ys.append(Y), versions.append(v)
+        sets.append(load(droot, rroot, ("train", "val", "test")))
+        if sets[-1][0].shape[1:] != sets[0][0].shape[1:]:
+            raise ValueError(f"{rroot}: features {tuple(sets[-1][0].shape[1:])} differ from "
+                             f"{render_root}'s {tuple(sets[0][0].shape[1:])}")
+    Xs, Ys, versions = (list(col) for col in zip(*sets))
     if len(set(versions)) < len(versions):
         raise ValueError(f"training sets share a data version {versions}; extra objects need their own")
     Xtr, Ytr = torch.cat(Xs), torch.cat(Ys)

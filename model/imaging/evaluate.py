@@ -42,9 +42,11 @@ def image_alignment_report(ckpt: str, data_root: str, render_root: str, *, split
                            views: Optional[list[int]] = None, limit: int = 0, seed: int = 0,
                            temperature: float = 1.0, batch: int = 32, progress: bool = True,
                            follow_plan: bool = False, count_plan: bool = True,
+                           oracle_plan: bool = False,
                            max_nodes: int = 32, max_depth: int = 4, max_children: int = 16) -> dict:
     """``count_plan``: decode with END decisions held to the checkpoint's count head (if it
-    has one); ``follow_plan``: otherwise to the transformer's START plan head."""
+    has one); ``follow_plan``: otherwise to the transformer's START plan head;
+    ``oracle_plan`` (a diagnostic): to the object's true part counts."""
     import torch
 
     from model.articulation.evaluate import compare, record_structure
@@ -61,10 +63,15 @@ def image_alignment_report(ckpt: str, data_root: str, render_root: str, *, split
     for s in rng:
         chunk = jobs[s:s + batch]
         tok, mask, plan = im.condition([str(p) for *_, p in chunk])
+        if oracle_plan:
+            from .counts import count_targets
+            plan = count_targets([rec for rec, *_ in chunk], im.am.cfg.count_labels,
+                                 im.am.cfg.plan_max_count)
         with torch.inference_mode():
             trees = im.am.decode(tok, mask, seed=seed + s, temperature=temperature, modality="image",
                                  max_nodes=max_nodes, max_depth=max_depth, max_children=max_children,
-                                 follow_plan=follow_plan, plan=plan if count_plan else None)
+                                 follow_plan=follow_plan,
+                                 plan=plan if count_plan or oracle_plan else None)
         for (rec, k, r, path), tree in zip(chunk, trees):
             truth = record_structure(rec)
             ok = compare(tree.summary(), truth)
@@ -78,7 +85,7 @@ def image_alignment_report(ckpt: str, data_root: str, render_root: str, *, split
     return {"checkpoint": str(ckpt), "data": str(data_root), "renders": str(render_root),
             "split": split, "objects": len(ids), "images": len(rows), "seed": seed,
             "temperature": temperature, "follow_plan": follow_plan,
-            "count_plan": bool(count_plan and im.counter is not None),
+            "count_plan": "oracle" if oracle_plan else bool(count_plan and im.counter is not None),
             "category": share(rows, "category"), "alignment": share(rows),
             "counts": share(rows, "counts"), "joint_types": share(rows, "joint_types"),
             "by_category": {c: {"category": share([r for r in rows if r["truth"]["category"] == c], "category"),

@@ -481,6 +481,9 @@ def _parser():
                     help="--eval: decode with END decisions held to the START plan head")
     ap.add_argument("--no-count-plan", action="store_true",
                     help="--eval: ignore the checkpoint's count head (decode END freely)")
+    ap.add_argument("--oracle-plan", action="store_true",
+                    help="--eval diagnostic: hold END decisions to each object's TRUE part "
+                         "counts (how far count-guided decoding can go)")
     ap.add_argument("--json", metavar="PATH")
     ap.add_argument("--no-progress", action="store_true")
     return ap
@@ -506,6 +509,7 @@ def cli_main(argv: list[str]) -> int:
                                      views=views, limit=args.limit, seed=args.eval_seed,
                                      temperature=args.temperature, follow_plan=args.follow_plan,
                                      count_plan=not args.no_count_plan,
+                                     oracle_plan=args.oracle_plan,
                                      progress=not args.no_progress)
         print(json.dumps({k: v for k, v in rep.items() if k != "rows"}, indent=1))
         if args.json:

@@ -25,9 +25,12 @@ class GenerationConfig:
     temperature: float = 0.5           # Gumbel-softmax temperature at generation
     structure_temperature: float = 0.3 # END / joint-type sampling temperature of the tree
                                        # decoding (0 = greedy; 1 = the paper's plain sampling)
-    follow_plan: tuple = ("text",)     # modalities whose END decisions are held to the START
-                                       # plan head (decode.py); chosen on val: it helps text
-                                       # (0.8125 -> 0.8425), not images (0.35 -> 0.335)
+    follow_plan: tuple = ("text",)     # modalities whose END decisions are held to a plan:
+                                       # text to the START plan head (decode.py), an image to
+                                       # its model's count head if it has one (counts.py).
+                                       # Chosen on val: it helps text (0.8125 -> 0.8425), not
+                                       # images (START head 0.35 -> 0.335; count head
+                                       # 0.425 -> 0.4175), so images decode freely
     geometry: str = "generate"         # generate | retrieve
     mesh_format: str = "obj"           # obj | stl | glb
     collision: str = "auto"            # auto | cells | vhacd | hull | none (model.export.collision)
