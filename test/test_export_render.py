@@ -84,3 +84,30 @@ def test_back_face_culling_keeps_inverted_and_open_meshes_visible():
         b.parts[1].mesh = mesh
         img = render_views(b, (0.0,), 64, options=opts)[0]
         assert np.abs(img.astype(int) - ref.astype(int)).mean() < 1.0
+
+
+def test_part_id_render_matches_the_colour_render(cabinet):
+    """render_part_ids sees what render_views draws: the same silhouette (one sample per
+    pixel, same camera) and, seen from the front with everything open, every part."""
+    from model.export.render import render_part_ids
+    opt = RenderOptions(azimuth=20.0, elevation=15.0, supersample=1, background=(1.0, 0.0, 1.0))
+    for ratio in (0.0, 1.0):
+        ids = render_part_ids(cabinet, ratio, (96, 128), options=opt)
+        img = render_views(cabinet, (ratio,), (96, 128), options=opt)[0]
+        assert ids.shape == (96, 128) and ids.min() == -1 and ids.max() < len(cabinet.parts)
+        background = np.all(img == np.array([255, 0, 255]), axis=2)
+        assert np.array_equal(ids == -1, background)
+    px = np.bincount(ids[ids >= 0], minlength=len(cabinet.parts))
+    assert np.all(px > 0), px
+
+
+def test_part_id_render_knows_hidden_parts():
+    """From straight above the bottle's cap covers the centre; from straight below the body
+    hides it completely (0 pixels), which a colour render cannot tell apart from "small"."""
+    from model.export.render import render_part_ids
+    b = example_bottle()
+    cap = [p.label for p in b.parts].index("cap")
+    top = render_part_ids(b, 0.0, 64, options=RenderOptions(azimuth=0.0, elevation=89.0))
+    assert top[32, 32] == cap
+    below = render_part_ids(b, 0.0, 64, options=RenderOptions(azimuth=0.0, elevation=-89.0))
+    assert (below == cap).sum() == 0 and (below == 1 - cap).sum() > 100

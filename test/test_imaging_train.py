@@ -287,3 +287,39 @@ def test_generator_follows_the_image_count_head(tiny_set, tmp_path):
     free = Generator.load(GenerationConfig(follow_plan=(), **kw))     # --no-plan
     assert max(len(free.generate(image=png, seed=s)[0].obj.parts) for s in range(3)) > 1
     assert gen.generate(text="a cabinet with two doors", seed=0)[0].obj.parts   # text unaffected
+
+
+def test_alignment_report_with_visibility_breakdown(tiny_set, tmp_path):
+    """`artformer train image --eval CKPT --visibility`: every decoded render is scored, and
+    each also gets its parts' visible pixels (a part-id render with the render's camera);
+    the visibility groups partition the renders."""
+    import json
+
+    from model.imaging.evaluate import visibility_breakdown
+    from model.imaging.train import cli_main
+
+    ckpt, _, _ = _run(tiny_set, 0, 6, out=tmp_path / "img")
+    out = tmp_path / "eval.json"
+    assert cli_main(["--eval", str(ckpt), "--data", str(tiny_set / "prepared"),
+                     "--renders", str(tiny_set / "renders"), "--split", "train",
+                     "--temperature", "0", "--visibility", "--visible-px", "16",
+                     "--json", str(out), "--no-progress"]) == 0
+    rep = json.loads(out.read_text())
+    assert rep["images"] == 4 and len(rep["rows"]) == 4            # 2 objects x 2 views
+    for r in rep["rows"]:
+        labels = [lab for lab, _ in r["part_pixels"]]
+        assert sorted(labels) == sorted(lab for lab, n in r["truth"]["counts"].items() for _ in range(n))
+        body = dict(r["part_pixels"])["body"]
+        assert 500 < body < 224 * 224
+    groups = [v for k, v in rep["by_visibility"].items() if k != "parts_under_threshold"]
+    assert sum(g["renders"] for g in groups) == 4
+    assert set(rep["by_visibility"]["parts_under_threshold"]) == {"body", "cap", "door", "drawer", "handle"}
+    # the grouping itself, on hand-made rows
+    rows = [{"all": True, "part_pixels": [["body", 900], ["knob", 20]]},
+            {"all": False, "part_pixels": [["body", 900], ["knob", 3]]},
+            {"all": False, "part_pixels": [["body", 900], ["knob", 0]]},
+            {"all": True, "part_pixels": [["body", 900], ["knob", 0]]}]
+    b = visibility_breakdown(rows, 16)
+    assert [g["renders"] for k, g in b.items() if k != "parts_under_threshold"] == [1, 1, 2]
+    assert b["every part >= 16 px"]["alignment"] == 1.0 and b["a part hidden (0 px)"]["alignment"] == 0.5
+    assert b["parts_under_threshold"] == {"body": 0.0, "knob": 0.75}

@@ -142,12 +142,15 @@ def _scene(obj, ratio: float, colours, geometry: Optional[list] = None, dtype=np
 
 
 def _rasterise(tris: np.ndarray, cols: np.ndarray, closed: np.ndarray, eye: np.ndarray,
-               target: np.ndarray, fov: float, H: int, W: int, opt: RenderOptions) -> np.ndarray:
-    """Flat-shaded z-buffer render; returns (H, W, 3) float in [0, 1]."""
+               target: np.ndarray, fov: float, H: int, W: int, opt: RenderOptions,
+               with_index: bool = False):
+    """Flat-shaded z-buffer render; returns (H, W, 3) float in [0, 1], and with
+    ``with_index`` also (H, W) int64: the triangle seen at each pixel (-1: background)."""
     img = np.empty((H, W, 3))
     img[:] = np.asarray(opt.background, dtype=np.float64)
+    tbuf = np.full(H * W, -1, dtype=np.int64) if with_index else None
     if len(tris) == 0:
-        return img
+        return (img, tbuf.reshape(H, W)) if with_index else img
     fwd = target - eye
     fwd /= np.linalg.norm(fwd)
     up = np.array([0.0, 0.0, 1.0])
@@ -168,6 +171,7 @@ def _rasterise(tris: np.ndarray, cols: np.ndarray, closed: np.ndarray, eye: np.n
     keep &= nn > 1e-15
     # Back faces of closed surfaces are hidden anyway: culling them halves the raster work.
     keep &= ~(closed & (np.sum(n * (eye - tris.mean(axis=1)), axis=1) < 0))
+    kept = np.nonzero(keep)[0]                                       # (K,) input triangle ids
     tris_c = (tris[keep].mean(axis=1))                               # (K, 3)
     n = n[keep] / nn[keep, None]
     view = eye - tris_c
@@ -223,8 +227,32 @@ def _rasterise(tris: np.ndarray, cols: np.ndarray, closed: np.ndarray, eye: np.n
             np.minimum.at(zbuf, pid, depth)
             win = depth == zbuf[pid]
             cbuf[pid[win]] = shade[ti[win]]
+            if with_index:
+                tbuf[pid[win]] = kept[ti[win]]
         start = stop
-    return np.clip(cbuf.reshape(H, W, 3), 0.0, 1.0)
+    img = np.clip(cbuf.reshape(H, W, 3), 0.0, 1.0)
+    return (img, tbuf.reshape(H, W)) if with_index else img
+
+
+def _camera(obj, ratios: Sequence[float], geometry: list, options: RenderOptions, H: int, W: int
+            ) -> tuple[np.ndarray, np.ndarray]:
+    """(eye, target) of one camera framed on the union of the object posed at ``ratios``
+    (bounds of the posed vertices); the scenes themselves are built one at a time (a 19-part
+    object is ~1M triangles)."""
+    lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
+    for r in ratios:
+        T = obj.link_transforms(ratio=float(r))
+        for p, g in zip(obj.parts, geometry):
+            if g is not None and len(g[1]):
+                v = g[0][np.unique(g[1])] @ T[p.name][:3, :3].T + T[p.name][:3, 3]
+                lo, hi = np.minimum(lo, v.min(axis=0)), np.maximum(hi, v.max(axis=0))
+    if not np.all(np.isfinite(lo)):
+        lo, hi = -np.ones(3) * 0.5, np.ones(3) * 0.5
+    centre = (lo + hi) / 2.0
+    radius = max(float(np.linalg.norm(hi - lo)) / 2.0, 1e-3) * options.margin
+    half_fov = math.radians(min(options.fov, options.fov * W / H)) / 2.0
+    dist = radius / math.sin(half_fov)
+    return centre + dist * _direction(options.azimuth, options.elevation), centre
 
 
 def render_views(obj, ratios: Sequence[float] = (0.0, 0.5, 1.0), size=224, *,
@@ -252,22 +280,7 @@ def render_views(obj, ratios: Sequence[float] = (0.0, 0.5, 1.0), size=224, *,
             ext = float(np.max(np.max([x[1] for x in b], 0) - np.min([x[0] for x in b], 0)))
             cell = 0.5 * ext * options.margin / (min(H, W) * ss)
     geometry = _part_geometry(obj, cell)
-    # one camera framed on the union of the posed objects (bounds of the posed vertices);
-    # the scenes themselves are built one at a time (a 19-part object is ~1M triangles)
-    lo, hi = np.full(3, np.inf), np.full(3, -np.inf)
-    for r in ratios:
-        T = obj.link_transforms(ratio=float(r))
-        for p, g in zip(obj.parts, geometry):
-            if g is not None and len(g[1]):
-                v = g[0][np.unique(g[1])] @ T[p.name][:3, :3].T + T[p.name][:3, 3]
-                lo, hi = np.minimum(lo, v.min(axis=0)), np.maximum(hi, v.max(axis=0))
-    if not np.all(np.isfinite(lo)):
-        lo, hi = -np.ones(3) * 0.5, np.ones(3) * 0.5
-    centre = (lo + hi) / 2.0
-    radius = max(float(np.linalg.norm(hi - lo)) / 2.0, 1e-3) * options.margin
-    half_fov = math.radians(min(options.fov, options.fov * W / H)) / 2.0
-    dist = radius / math.sin(half_fov)
-    eye = centre + dist * _direction(options.azimuth, options.elevation)
+    eye, centre = _camera(obj, ratios, geometry, options, H, W)
     out = np.empty((len(ratios), H, W, 3), dtype=np.uint8)
     for k, r in enumerate(ratios):
         if interrupt is not None and interrupt():
@@ -281,6 +294,24 @@ def render_views(obj, ratios: Sequence[float] = (0.0, 0.5, 1.0), size=224, *,
             img = img.reshape(H, ss, W, ss, 3).mean(axis=(1, 3))
         out[k] = np.round(img * 255.0).astype(np.uint8)
     return out
+
+
+def render_part_ids(obj, ratio: float, size=224, *, options: Optional[RenderOptions] = None
+                    ) -> np.ndarray:
+    """Which part is seen at every pixel of the view ``render_views(obj, (ratio,), size,
+    options=options)`` renders (same camera, same z-buffer, one sample at each pixel centre,
+    no supersampling): (H, W) int64, the index into ``obj.parts``, -1 for the background."""
+    H, W = (size, size) if np.ndim(size) == 0 else (int(size[0]), int(size[1]))
+    options = options or RenderOptions()
+    geometry = _part_geometry(obj)
+    eye, centre = _camera(obj, (ratio,), geometry, options, H, W)
+    tris, cols, closed = _scene(obj, float(ratio), [np.zeros(3)] * len(obj.parts), geometry)
+    if len(tris) == 0:
+        return np.full((H, W), -1, dtype=np.int64)
+    part_of = np.concatenate([np.full(len(g[1]), k, dtype=np.int64)
+                              for k, g in enumerate(geometry) if g is not None])
+    _, tri = _rasterise(tris, cols, closed, eye, centre, options.fov, H, W, options, with_index=True)
+    return np.where(tri >= 0, part_of[np.maximum(tri, 0)], -1)
 
 
 def write_preview(obj, path, *, ratios: Sequence[float] = (0.0, 0.5, 1.0), size: int = 320,

@@ -38,15 +38,56 @@ def held_out_views(data_root: str, render_root: str, *, split: str = "test",
     return ids, jobs
 
 
+VISIBLE_PX = 16          # a part smaller than 4x4 pixels of a 224-px render is hard to count
+
+_OBJECTS: dict = {}
+
+
+def _part_pixels(data_root: str, render_root: str, rec, view: int) -> list:
+    """[[label, visible pixels], ...] of every part of ``rec`` in its rendered view ``view``."""
+    from .render import part_pixels
+    from .renders import object_from_record, view_specs
+    if rec.id not in _OBJECTS:
+        _OBJECTS.clear()                                      # one object's meshes at a time
+        _OBJECTS[rec.id] = object_from_record(data_root, rec)
+    obj = _OBJECTS[rec.id]
+    px = part_pixels(obj, view_specs(render_root, rec.id)[view])
+    return [[p.label, int(n)] for p, n in zip(obj.parts, px)]
+
+
+def visibility_breakdown(rows: list[dict], visible_px: int = VISIBLE_PX) -> dict:
+    """Structure alignment of the renders whose every part shows >= ``visible_px`` pixels,
+    of those with a smaller (but seen) part and of those with a hidden part; and per label
+    the share of parts under ``visible_px`` pixels."""
+    groups = {f"every part >= {visible_px} px": lambda m: m >= visible_px,
+              f"smallest part 1-{visible_px - 1} px": lambda m: 0 < m < visible_px,
+              "a part hidden (0 px)": lambda m: m == 0}
+    out = {}
+    for name, test in groups.items():
+        sel = [r for r in rows if test(min(n for _, n in r["part_pixels"]))]
+        out[name] = {"renders": len(sel), "share": len(sel) / max(1, len(rows)),
+                     "alignment": float(np.mean([r["all"] for r in sel])) if sel else float("nan")}
+    small, total = {}, {}
+    for r in rows:
+        for lab, n in r["part_pixels"]:
+            total[lab] = total.get(lab, 0) + 1
+            small[lab] = small.get(lab, 0) + (n < visible_px)
+    out["parts_under_threshold"] = {lab: small[lab] / total[lab] for lab in sorted(total)}
+    return out
+
+
 def image_alignment_report(ckpt: str, data_root: str, render_root: str, *, split: str = "test",
                            views: Optional[list[int]] = None, limit: int = 0, seed: int = 0,
                            temperature: float = 1.0, batch: int = 32, progress: bool = True,
                            follow_plan: bool = False, count_plan: bool = True,
-                           oracle_plan: bool = False,
-                           max_nodes: int = 32, max_depth: int = 4, max_children: int = 16) -> dict:
+                           oracle_plan: bool = False, visibility: bool = False,
+                           visible_px: int = VISIBLE_PX, max_nodes: int = 32, max_depth: int = 4, max_children: int = 16) -> dict:
     """``count_plan``: decode with END decisions held to the checkpoint's count head (if it
     has one); ``follow_plan``: otherwise to the transformer's START plan head;
-    ``oracle_plan`` (a diagnostic): to the object's true part counts."""
+    ``oracle_plan`` (a diagnostic): to the object's true part counts.
+    ``visibility``: also measure how much of every part each render shows (a part-id render
+    with the same camera) and report structure separately for the renders whose every part
+    covers at least ``visible_px`` pixels and for the rest (``by_visibility``)."""
     import torch
 
     from model.articulation.evaluate import compare, record_structure
@@ -77,6 +118,8 @@ def image_alignment_report(ckpt: str, data_root: str, render_root: str, *, split
             ok = compare(tree.summary(), truth)
             rows.append({"id": rec.id, "view": k, "openness": r, "image": str(path), **ok,
                          "decoded": tree.summary(), "truth": truth})
+            if visibility:
+                rows[-1]["part_pixels"] = _part_pixels(data_root, render_root, rec, k)
 
     def share(rs, key="all"):
         return float(np.mean([r[key] for r in rs])) if rs else float("nan")
@@ -92,6 +135,7 @@ def image_alignment_report(ckpt: str, data_root: str, render_root: str, *, split
                                 "alignment": share([r for r in rows if r["truth"]["category"] == c]),
                                 "images": sum(r["truth"]["category"] == c for r in rows)}
                             for c in cats},
+            **({"by_visibility": visibility_breakdown(rows, visible_px)} if visibility else {}),
             "by_openness": {name: share([r for r in rows if lo <= r["openness"] <= hi])
                             for name, (lo, hi) in {"closed(0)": (0, 0), "open(1)": (1, 1),
                                                    "between": (1e-6, 1 - 1e-6)}.items()},

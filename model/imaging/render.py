@@ -100,3 +100,12 @@ def render_view(obj: ArticulatedObject, view: ViewSpec, size: int = RENDER_SIZE)
         raise ValueError(f"object {obj.name!r} has no part meshes to render")
     return render_views(obj, (float(view.openness),), size, options=render_options(view),
                         seed=int(view.colour_seed))[0]
+
+
+def part_pixels(obj: ArticulatedObject, view: ViewSpec, size: int = RENDER_SIZE) -> np.ndarray:
+    """Visible pixels of every part of ``obj`` in ``view`` at ``size`` (one z-buffer sample
+    per pixel, the camera of ``render_view``): (len(obj.parts),) int; 0 = hidden."""
+    from model.export.render import render_part_ids
+    ids = render_part_ids(obj, float(view.openness), size, options=render_options(view))
+    return np.bincount(ids[ids >= 0].ravel(), minlength=len(obj.parts))[:len(obj.parts)]
+

@@ -484,6 +484,11 @@ def _parser():
     ap.add_argument("--oracle-plan", action="store_true",
                     help="--eval diagnostic: hold END decisions to each object's TRUE part "
                          "counts (how far count-guided decoding can go)")
+    ap.add_argument("--visibility", action="store_true",
+                    help="--eval: also measure every part's visible pixels in each render and "
+                         "report structure by visibility (by_visibility)")
+    ap.add_argument("--visible-px", type=int, default=16,
+                    help="--visibility: pixels a part needs to count as visible (default 16)")
     ap.add_argument("--json", metavar="PATH")
     ap.add_argument("--no-progress", action="store_true")
     return ap
@@ -509,8 +514,8 @@ def cli_main(argv: list[str]) -> int:
                                      views=views, limit=args.limit, seed=args.eval_seed,
                                      temperature=args.temperature, follow_plan=args.follow_plan,
                                      count_plan=not args.no_count_plan,
-                                     oracle_plan=args.oracle_plan,
-                                     progress=not args.no_progress)
+                                     oracle_plan=args.oracle_plan, visibility=args.visibility,
+                                     visible_px=args.visible_px, progress=not args.no_progress)
         print(json.dumps({k: v for k, v in rep.items() if k != "rows"}, indent=1))
         if args.json:
             Path(args.json).parent.mkdir(parents=True, exist_ok=True)
