@@ -104,13 +104,19 @@ def _bench(argv: list[str]) -> int:
     p.add_argument("--threads", type=int, default=2, help="torch threads for meshing (2)")
     p.add_argument("--ddim-threads", type=int, default=1,
                    help="torch threads for DDIM (1, as the pipeline: model.core.runtime)")
+    p.add_argument("--default-heap", action="store_true",
+                   help="leave glibc's allocator thresholds alone (the pipeline keeps the "
+                        "heap mapped: model.core.runtime.keep_heap_mapped)")
     a = p.parse_args(argv[2:])
     import torch
     torch.set_num_threads(a.threads)
+    from model.core.runtime import keep_heap_mapped
+    heap = False if a.default_heap else keep_heap_mapped()
     from .evaluate import benchmark
     shape = _load_shape(a, need_prior=True)
     res = benchmark(shape, resolution=a.resolution, parts=a.parts, steps=a.steps,
                     repeats=a.repeats, ddim_threads=a.ddim_threads)
+    res["heap_kept_mapped"] = heap
     for k, v in res.items():
         print(f"{k:<36} {v:.1f}" if isinstance(v, float) else f"{k:<36} {v}")
     return 0

@@ -22,7 +22,7 @@ from typing import Optional, Union
 import numpy as np
 
 from model.core import ArticulatedObject, ObjectValidationError
-from model.core.runtime import torch_threads
+from model.core.runtime import keep_heap_mapped, torch_threads
 from model.pipeline.api import (ExportResult, GeneratedObject, GenerationConfig,
                                 GenerationError)
 
@@ -126,6 +126,7 @@ class Generator:
         config = config or GenerationConfig()
         validate_config(config)
         torch.set_num_threads(max(1, int(config.threads)))
+        keep_heap_mapped()                      # meshing buffers stay mapped (core.runtime)
         t0 = time.perf_counter()
         paths = find_checkpoints(config.checkpoint)
         try:
