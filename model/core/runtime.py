@@ -44,9 +44,9 @@ def keep_heap_mapped() -> bool:
     """glibc only, once per process: serve allocations up to 32 MB (the cap glibc accepts)
     from the heap instead of fresh ``mmap`` pages, and do not shrink the heap on every free.
     Meshing allocates 8 MB activations per 32k-point chunk; with the default dynamic
-    thresholds many of them come back as new pages to fault in (measured, one part at 64³,
-    2 threads: 107-120 ms median -> 85-95 ms, `artformer bench geometry` and
-    runs-style profiles). Freed heap is handed back by ``release_free_memory`` after each
+    thresholds many of them come back as new pages to fault in (measured, one part at 64³ on
+    2 threads: 88.5-88.9 ms median kept, 100.7-136.9 ms default, `artformer bench geometry
+    [--default-heap]`). Freed heap is handed back by ``release_free_memory`` after each
     request. ``ARTFORMER_KEEP_HEAP=0`` leaves the allocator alone. Returns whether it is set."""
     import os
     global _heap_kept

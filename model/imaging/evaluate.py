@@ -40,17 +40,16 @@ def held_out_views(data_root: str, render_root: str, *, split: str = "test",
 
 VISIBLE_PX = 16          # a part smaller than 4x4 pixels of a 224-px render is hard to count
 
-_OBJECTS: dict = {}
 
-
-def _part_pixels(data_root: str, render_root: str, rec, view: int) -> list:
-    """[[label, visible pixels], ...] of every part of ``rec`` in its rendered view ``view``."""
+def _part_pixels(data_root: str, render_root: str, rec, view: int, cache: dict) -> list:
+    """[[label, visible pixels], ...] of every part of ``rec`` in its rendered view ``view``
+    (``cache`` keeps the last object's meshes: its views come one after another)."""
     from .render import part_pixels
     from .renders import object_from_record, view_specs
-    if rec.id not in _OBJECTS:
-        _OBJECTS.clear()                                      # one object's meshes at a time
-        _OBJECTS[rec.id] = object_from_record(data_root, rec)
-    obj = _OBJECTS[rec.id]
+    if rec.id not in cache:
+        cache.clear()
+        cache[rec.id] = object_from_record(data_root, rec)
+    obj = cache[rec.id]
     px = part_pixels(obj, view_specs(render_root, rec.id)[view])
     return [[p.label, int(n)] for p, n in zip(obj.parts, px)]
 
@@ -81,7 +80,8 @@ def image_alignment_report(ckpt: str, data_root: str, render_root: str, *, split
                            temperature: float = 1.0, batch: int = 32, progress: bool = True,
                            follow_plan: bool = False, count_plan: bool = True,
                            oracle_plan: bool = False, visibility: bool = False,
-                           visible_px: int = VISIBLE_PX, max_nodes: int = 32, max_depth: int = 4, max_children: int = 16) -> dict:
+                           visible_px: int = VISIBLE_PX, max_nodes: int = 32, max_depth: int = 4,
+                           max_children: int = 16) -> dict:
     """``count_plan``: decode with END decisions held to the checkpoint's count head (if it
     has one); ``follow_plan``: otherwise to the transformer's START plan head;
     ``oracle_plan`` (a diagnostic): to the object's true part counts.
@@ -96,7 +96,7 @@ def image_alignment_report(ckpt: str, data_root: str, render_root: str, *, split
 
     im = load_image_model(ckpt)
     ids, jobs = held_out_views(data_root, render_root, split=split, views=views, limit=limit)
-    rows = []
+    rows, objects = [], {}
     rng = range(0, len(jobs), batch)
     if progress:
         from tqdm import tqdm
@@ -119,7 +119,7 @@ def image_alignment_report(ckpt: str, data_root: str, render_root: str, *, split
             rows.append({"id": rec.id, "view": k, "openness": r, "image": str(path), **ok,
                          "decoded": tree.summary(), "truth": truth})
             if visibility:
-                rows[-1]["part_pixels"] = _part_pixels(data_root, render_root, rec, k)
+                rows[-1]["part_pixels"] = _part_pixels(data_root, render_root, rec, k, objects)
 
     def share(rs, key="all"):
         return float(np.mean([r[key] for r in rs])) if rs else float("nan")
