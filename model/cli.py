@@ -15,6 +15,7 @@ ROUTES: dict[tuple[str, ...], tuple[str, str]] = {
     ("train", "transformer"): ("model.articulation.commands", "train the articulation transformer"),
     ("train", "image"): ("model.imaging.commands", "train the image-conditioned transformer"),
     ("train", "image-counts"): ("model.imaging.commands", "train the image model's count head"),
+    ("train", "image-trunk"): ("model.imaging.commands", "fine-tune the image encoder trunk to count parts"),
     ("generate",): ("model.pipeline.commands", "text or image -> URDF + meshes"),
     ("edit",): ("model.pipeline.commands", "remove parts of a URDF and regenerate them from text"),
     ("eval", "geometry"): ("model.geometry.commands", "shape-prior reconstruction / sample quality"),

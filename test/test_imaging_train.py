@@ -22,7 +22,7 @@ def tiny_set(tmp_path_factory):
 
 
 def _run(root, trainable_blocks: int, steps: int, own_inputs: float = 0.0, multiscale=False,
-         init="none", out=None, extra=()):
+         init="none", out=None, extra=(), trunk=""):
     from model.articulation.config import preset
     from model.articulation.targets import StandInTargets
     from model.imaging.train import ImageRunConfig, ImageTrainConfig, train_image
@@ -33,7 +33,7 @@ def _run(root, trainable_blocks: int, steps: int, own_inputs: float = 0.0, multi
     rc = ImageRunConfig(data=str(root / "prepared"), renders=str(root / "renders"),
                         out=str(out or root / f"run{trainable_blocks}"), net=net, train=tc,
                         image=ImageTrainConfig(trainable_blocks=trainable_blocks, init=init,
-                                               multiscale=multiscale),
+                                               multiscale=multiscale, trunk=trunk),
                         targets=tg, progress=False, extra=list(extra))
     return train_image(rc), tg, tc
 
@@ -259,6 +259,65 @@ def test_count_head_learns_counts_and_holds_decoding_to_them(tiny_set, tmp_path)
         load_image_model(tmp_path / "relabelled.pt")
     # a missing image checkpoint is refused
     assert cli_main(["--image", str(tmp_path / "missing.pt")]) == 2
+
+
+def test_fine_tuned_trunk_feeds_the_image_model(tiny_set, tmp_path):
+    """`artformer train image-trunk` fine-tunes trunk blocks to count parts; `train image
+    --trunk` caches features with them and stores them in the checkpoint; the loader applies
+    them, a continued run keeps them, and a damaged trunk file is refused."""
+    from model.encoders.image import ImageEncoder, ImageEncoderConfig
+    from model.imaging.features import cache_path, load_feature_cache
+    from model.imaging.model import load_image_model
+    from model.imaging.renders import view_paths
+    from model.imaging.trunk import TrunkError, cli_main, load_trunk
+
+    image_ckpt, _, _ = _run(tiny_set, 0, 2, out=tmp_path / "img")
+    out = tmp_path / "trunk"
+    assert cli_main(["--image", str(image_ckpt), "--data", str(tiny_set / "prepared"),
+                     "--renders", str(tiny_set / "renders"), "--out", str(out), "--steps", "24",
+                     "--batch-size", "4", "--freeze", "12", "--evals", "3", "--lr", "1e-3",
+                     "--threads", "1"]) == 0
+    tr = load_trunk(out)
+    rec = tr["train"]
+    assert rec["command"].startswith("artformer train image-trunk") and rec["seed"] == 0
+    assert rec["data_versions"] == ["test"] and rec["train_objects"] == 2 and len(rec["history"]) == 3
+    assert rec["history"][-1]["train_loss"] < 0.5 * np.log(21)      # counts are being learnt
+    assert {k.split(".")[1] for k in tr["state_dict"]} == {"12", "13", "14"}
+    assert all(v.dtype == torch.float16 for v in tr["state_dict"].values() if v.is_floating_point())
+    imagenet = ImageEncoder(ImageEncoderConfig()).net.state_dict()
+    assert any(not torch.equal(v.float(), imagenet[k]) for k, v in tr["state_dict"].items())
+
+    path, _, _ = _run(tiny_set, 0, 3, out=tmp_path / "img_trunk", trunk=str(out / "trunk.pt"))
+    assert cache_path(tiny_set / "renders", tag=tr["tag"]).exists()
+    ck = torch.load(path, map_location="cpu", weights_only=False)
+    assert ck["image_encoder"]["trunk_info"]["tag"] == tr["tag"]
+    assert "history" not in ck["image_encoder"]["trunk_info"]["train"]
+    im = load_image_model(path)
+    k = "_blocks.13._depthwise_conv.weight"
+    assert torch.equal(im.encoder.net.state_dict()[k], tr["state_dict"][k].float())
+    png = str(view_paths(tiny_set / "renders", "cabinet")[1])
+    tokens, _ = im.encode(png)
+    cache = load_feature_cache(tiny_set / "renders", tag=tr["tag"])
+    row = cache["ids"].index("cabinet")
+    with torch.no_grad():
+        cached = im.encoder.tail(cache["feats"][row, 1:2].float(), start=cache["split"])
+    assert torch.allclose(tokens, cached, atol=2e-2)              # cache = what the loader reads
+    assert not torch.allclose(tokens, ImageEncoder(ImageEncoderConfig()).encode(png).states, atol=1e-2)
+    # continuing from the image checkpoint keeps its trunk
+    path2, _, _ = _run(tiny_set, 0, 2, out=tmp_path / "img_cont", init=str(path))
+    ck2 = torch.load(path2, map_location="cpu", weights_only=False)
+    assert ck2["image_encoder"]["trunk_info"]["tag"] == tr["tag"]
+    # damage is refused with a clear error
+    raw = torch.load(out / "trunk.pt", map_location="cpu", weights_only=False)
+    raw["state_dict"][k] = raw["state_dict"][k] + 1
+    torch.save(raw, tmp_path / "damaged.pt")
+    with pytest.raises(TrunkError, match="hash"):
+        load_trunk(tmp_path / "damaged.pt")
+    with pytest.raises(TrunkError, match="not an"):
+        load_trunk(image_ckpt)
+    (tmp_path / "garbage.pt").write_bytes(b"not a torch file")
+    with pytest.raises(TrunkError, match="cannot be read"):
+        load_trunk(tmp_path / "garbage.pt")
 
 
 def test_generator_follows_the_image_count_head(tiny_set, tmp_path):

@@ -1,4 +1,4 @@
-"""`artformer data render`, `artformer train image` and `artformer train image-counts` (issue 8)."""
+"""`artformer data render`, `artformer train image`, `image-trunk` and `image-counts` (issue 8)."""
 from __future__ import annotations
 
 import argparse
@@ -40,6 +40,9 @@ def main(argv: list[str]) -> int:
         return _render(argv[2:])
     if words == ("train", "image"):
         from .train import cli_main
+        return cli_main(argv[2:])
+    if words == ("train", "image-trunk"):
+        from .trunk import cli_main
         return cli_main(argv[2:])
     if words == ("train", "image-counts"):
         from .counts import cli_main

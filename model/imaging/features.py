@@ -9,6 +9,8 @@ same way in its own file (~44 KB a view).
 
     OUT/features/trunk<split>.pt   {"ids": [...], "feats": (N, K, C, H, W) fp16,
                                     "split": int, "render_version": int, "weights": str}
+    OUT/features/trunk<split>-<tag>.pt   the same with a fine-tuned trunk (model.imaging.trunk;
+                                    "weights" = the trunk's content hash)
 """
 from __future__ import annotations
 
@@ -26,23 +28,32 @@ from .renders import load_render_manifest, rendered_ids, view_paths
 log = logging.getLogger(__name__)
 
 CACHE_SPLIT = 15        # trunk = stem + blocks 0..14; the cache serves trainable_blocks <= 1
+IMAGENET = "imagenet"   # the tag of the packaged ImageNet weights
 
 
-def cache_path(render_root: os.PathLike, split: int = CACHE_SPLIT) -> Path:
-    return Path(render_root) / "features" / f"trunk{split}.pt"
+def cache_path(render_root: os.PathLike, split: int = CACHE_SPLIT, tag: str = IMAGENET) -> Path:
+    """OUT/features/trunk<split>.pt for the ImageNet weights, trunk<split>-<tag>.pt for a
+    fine-tuned trunk (model.imaging.trunk)."""
+    name = f"trunk{split}" if tag == IMAGENET else f"trunk{split}-{tag}"
+    return Path(render_root) / "features" / f"{name}.pt"
 
 
 def build_feature_cache(render_root: os.PathLike, ids: list[str], *, batch_size: int = 32,
-                        progress: bool = False, split: int = CACHE_SPLIT) -> dict:
+                        progress: bool = False, split: int = CACHE_SPLIT,
+                        encoder=None, tag: str = IMAGENET) -> dict:
     """Features after the first ``split`` encoder blocks of every view of ``ids``
-    (already-cached ids are reused)."""
+    (already-cached ids are reused). ``encoder`` with fine-tuned trunk weights needs the
+    ``tag`` of those weights (``trunk_tag``); the default is the ImageNet encoder."""
     import io
 
     from model.encoders.image import ImageEncoder, ImageEncoderConfig, preprocess
+    if (encoder is None) != (tag == IMAGENET):
+        raise ValueError("a feature cache of a fine-tuned trunk needs both its encoder and its tag")
     manifest = load_render_manifest(render_root)
-    path = cache_path(render_root, split)
-    cache = load_feature_cache(render_root, split) if path.exists() else None
-    if cache is not None and cache.get("render_version") != manifest["render_version"]:
+    path = cache_path(render_root, split, tag)
+    cache = load_feature_cache(render_root, split, tag) if path.exists() else None
+    if cache is not None and (cache.get("render_version") != manifest["render_version"]
+                              or cache.get("weights", IMAGENET) != tag):
         cache = None
     have = {} if cache is None else {i: k for k, i in enumerate(cache["ids"])}
     ids = rendered_ids(render_root, list(dict.fromkeys(ids)))      # unique, in order
@@ -51,7 +62,7 @@ def build_feature_cache(render_root: os.PathLike, ids: list[str], *, batch_size:
         return cache
     if not todo:
         raise ValueError(f"no rendered views of the given objects in {render_root}")
-    enc = ImageEncoder(ImageEncoderConfig())
+    enc = encoder if encoder is not None else ImageEncoder(ImageEncoderConfig())
     views = int(manifest["views"])
     new = None
     flat = [(n, k, p) for n, oid in enumerate(todo) for k, p in enumerate(view_paths(render_root, oid))]
@@ -73,7 +84,7 @@ def build_feature_cache(render_root: os.PathLike, ids: list[str], *, batch_size:
     else:
         all_ids, feats = todo, new
     out = {"ids": all_ids, "feats": torch.from_numpy(feats), "split": split,
-           "render_version": manifest["render_version"], "weights": "imagenet"}
+           "render_version": manifest["render_version"], "weights": tag}
     buf = io.BytesIO()
     torch.save(out, buf)
     atomic_write_bytes(path, buf.getvalue())
@@ -81,8 +92,8 @@ def build_feature_cache(render_root: os.PathLike, ids: list[str], *, batch_size:
     return out
 
 
-def load_feature_cache(render_root: os.PathLike, split: int = CACHE_SPLIT) -> dict:
-    path = cache_path(render_root, split)
+def load_feature_cache(render_root: os.PathLike, split: int = CACHE_SPLIT, tag: str = IMAGENET) -> dict:
+    path = cache_path(render_root, split, tag)
     if not path.exists():
         raise FileNotFoundError(f"no feature cache at {path}; `artformer train image` builds it")
     return torch.load(path, map_location="cpu", weights_only=False)

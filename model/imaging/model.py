@@ -97,6 +97,8 @@ def load_image_model(path: Union[str, os.PathLike, None] = None) -> ImageArticul
     cfg = ImageEncoderConfig(**{k: (tuple(v) if k == "background" else v)
                                 for k, v in enc_info.get("config", {}).items()})
     encoder = ImageEncoder(cfg)
+    if enc_info.get("trunk"):        # blocks fine-tuned by `artformer train image-trunk`
+        encoder.load_tail_state_dict({k: v.float() for k, v in enc_info["trunk"].items()})
     if enc_info.get("tail"):
         encoder.load_tail_state_dict({k: v.float() for k, v in enc_info["tail"].items()})
     encoder.requires_grad_(False)

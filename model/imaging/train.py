@@ -44,6 +44,8 @@ class ImageTrainConfig:
     positions: bool = True         # 2-D position embedding of the 7x7 image tokens (without it
                                    # cross-attention sees an unordered set of 49 features)
     multiscale: bool = False       # tokens also carry the folded 14x14 block-10 map (1728-d)
+    trunk: str = ""                # fine-tuned trunk (`artformer train image-trunk`); "" = the
+                                   # init image checkpoint's, else ImageNet's
 
 
 @dataclass
@@ -242,6 +244,11 @@ def train_image(rc: ImageRunConfig) -> Path:
         cfg.num_codebooks, cfg.codebook_size = int(tg.num_codebooks), int(tg.codebook_size)
     encoder = ImageEncoder(ImageEncoderConfig(trainable_blocks=ic.trainable_blocks,
                                               multiscale=ic.multiscale))
+    trunk = _trunk_for(ic, init)
+    if trunk is not None:
+        encoder.load_tail_state_dict({k: v.float() for k, v in trunk["state_dict"].items()})
+        log.info("encoder trunk: %s (blocks %d-%d fine-tuned, tag %s)", ic.trunk or ic.init,
+                 trunk["freeze"], trunk["split"] - 1, trunk["tag"])
     if cfg.cond_dims.get("image") != encoder.dim:
         cfg.cond_dims = {**cfg.cond_dims, "image": encoder.dim}
     grid = {k: v for k, v in cfg.cond_grid.items() if k != "image"}
@@ -268,6 +275,8 @@ def train_image(rc: ImageRunConfig) -> Path:
 
     def features(root, ids, split=None):
         kw = {} if split is None else {"split": split}
+        if trunk is not None:
+            kw.update(encoder=encoder, tag=trunk["tag"])
         return ViewFeatures(build_feature_cache(root, ids, progress=rc.progress, **kw))
 
     feats = features(rc.renders, [it.id for it in tr + va])
@@ -321,7 +330,8 @@ def train_image(rc: ImageRunConfig) -> Path:
         if half:
             tail_sd = {k: v.half() if v.is_floating_point() else v for k, v in tail_sd.items()}
         extra = {"condition": "image", "targets": getattr(rc.targets, "name", "?"),
-                 "image_encoder": {"config": asdict(encoder.config), "tail": tail_sd},
+                 "image_encoder": {"config": asdict(encoder.config), "tail": tail_sd,
+                                   **_trunk_entry(trunk)},
                  "image_train_config": asdict(ic), "renders": render_info,
                  "extra_train": extra_info,
                  "init": ic.init if init is not None else "none",
@@ -410,6 +420,27 @@ def train_image(rc: ImageRunConfig) -> Path:
     return out / "image.pt"
 
 
+def _trunk_for(ic: ImageTrainConfig, init: Optional[dict]) -> Optional[dict]:
+    """The fine-tuned trunk a run uses: --trunk, else the one of an image init checkpoint."""
+    from .trunk import load_trunk
+    if ic.trunk:
+        return load_trunk(ic.trunk)
+    enc = (init or {}).get("image_encoder") or {}
+    if init is not None and init.get("condition") == "image" and enc.get("trunk"):
+        return {**enc["trunk_info"], "state_dict": enc["trunk"]}
+    return None
+
+
+def _trunk_entry(trunk: Optional[dict]) -> dict:
+    """What an image checkpoint keeps of its fine-tuned trunk: the weights (fp16) and where
+    they came from (without the per-evaluation history)."""
+    if trunk is None:
+        return {}
+    train = {k: v for k, v in (trunk.get("train") or {}).items() if k != "history"}
+    info = {k: trunk[k] for k in ("kind", "freeze", "split", "tag") if k in trunk}
+    return {"trunk": trunk["state_dict"], "trunk_info": {**info, "train": train}}
+
+
 def write_half(src: Path, dst: Path) -> None:
     """fp16 copy of an image checkpoint (network and fine-tuned encoder tail)."""
     import io
@@ -448,6 +479,9 @@ def _parser():
     ap.add_argument("--trainable-blocks", type=int, default=0, choices=(0, 1),
                     help="0 = frozen encoder (default), 1 = fine-tune its last block + head")
     ap.add_argument("--tail-lr-mult", type=float, default=0.1)
+    ap.add_argument("--trunk", metavar="TRUNK_PT",
+                    help="read the features of this fine-tuned trunk (`artformer train "
+                         "image-trunk`); default: the --init image checkpoint's, else ImageNet's")
     ap.add_argument("--multiscale", action="store_true",
                     help="tokens also carry the 14x14 block-10 features (1728-d); from a "
                          "1280-d image checkpoint the projection is widened with zeros")
@@ -532,7 +566,7 @@ def cli_main(argv: list[str]) -> int:
     targets = make_targets(args.prior, args.sdf, net_cfg)
     ic = ImageTrainConfig(trainable_blocks=args.trainable_blocks, tail_lr_mult=args.tail_lr_mult,
                           init=args.init, positions=not args.no_positions,
-                          multiscale=args.multiscale)
+                          multiscale=args.multiscale, trunk=args.trunk or "")
     if ic.init.lower() != "none" and not Path(ic.init).exists():
         print(f"artformer train image: --init {ic.init} does not exist; train the text model "
               f"first or pass --init none", flush=True)
