@@ -303,6 +303,10 @@ def test_fine_tuned_trunk_feeds_the_image_model(tiny_set, tmp_path):
         cached = im.encoder.tail(cache["feats"][row, 1:2].float(), start=cache["split"])
     assert torch.allclose(tokens, cached, atol=2e-2)              # cache = what the loader reads
     assert not torch.allclose(tokens, ImageEncoder(ImageEncoderConfig()).encode(png).states, atol=1e-2)
+    # the ImageNet-feature count head refuses a checkpoint that reads a fine-tuned trunk
+    from model.imaging.counts import cli_main as counts_main
+    assert counts_main(["--image", str(path), "--data", str(tiny_set / "prepared"),
+                        "--renders", str(tiny_set / "renders"), "--out", str(tmp_path / "c")]) == 2
     # continuing from the image checkpoint keeps its trunk
     path2, _, _ = _run(tiny_set, 0, 2, out=tmp_path / "img_cont", init=str(path))
     ck2 = torch.load(path2, map_location="cpu", weights_only=False)

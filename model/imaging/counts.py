@@ -174,6 +174,10 @@ def train_count_head(image_ckpt: str, data_root: str, render_root: str, out: str
     ck = read_checkpoint(image_ckpt)
     if ck.get("condition") != "image":
         raise CountHeadError(f"{image_ckpt} is not an image checkpoint (`artformer train image`)")
+    if (ck.get("image_encoder") or {}).get("trunk"):
+        raise CountHeadError(f"{image_ckpt} reads a fine-tuned trunk; this head trains on the "
+                             f"ImageNet trunk's features (`artformer train image-trunk` trains "
+                             f"a count head with its trunk)")
     labels = list(ck["config"].get("count_labels") or [])
     if not labels:
         raise CountHeadError(f"{image_ckpt} has no plan labels (count_labels) to count")
@@ -293,8 +297,12 @@ def cli_main(argv: list[str]) -> int:
     tc = CountTrainConfig(epochs=args.epochs, minutes=args.minutes, batch_size=args.batch_size,
                           lr=args.lr, seed=args.seed, threads=args.threads)
     command = "artformer train image-counts " + " ".join(shlex.quote(a) for a in argv)
-    path = train_count_head(args.image, args.data, args.renders, args.out,
-                            extra=[tuple(x) for x in args.extra_train], tc=tc, command=command,
-                            half=not args.fp32)
+    try:
+        path = train_count_head(args.image, args.data, args.renders, args.out,
+                                extra=[tuple(x) for x in args.extra_train], tc=tc, command=command,
+                                half=not args.fp32)
+    except CountHeadError as e:
+        print(f"artformer train image-counts: {e}", flush=True)
+        return 2
     print(f"checkpoint: {path}")
     return 0
