@@ -51,9 +51,8 @@ def build_feature_cache(render_root: os.PathLike, ids: list[str], *, batch_size:
     import io
 
     from model.core.runtime import keep_heap_mapped
-    keep_heap_mapped()
-
     from model.encoders.image import ImageEncoder, ImageEncoderConfig, preprocess
+    keep_heap_mapped()
     if (encoder is None) != (tag == IMAGENET):
         raise ValueError("a feature cache of a fine-tuned trunk needs both its encoder and its tag")
     manifest = load_render_manifest(render_root)

@@ -108,4 +108,3 @@ def part_pixels(obj: ArticulatedObject, view: ViewSpec, size: int = RENDER_SIZE)
     from model.export.render import render_part_ids
     ids = render_part_ids(obj, float(view.openness), size, options=render_options(view))
     return np.bincount(ids[ids >= 0].ravel(), minlength=len(obj.parts))[:len(obj.parts)]
-

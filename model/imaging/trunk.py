@@ -40,7 +40,7 @@ import numpy as np
 import torch
 from torch.nn import functional as F
 
-from .counts import COUNT_SPLIT, CountHead, CountHeadConfig, count_targets
+from .counts import COUNT_SPLIT, CountHead, CountHeadConfig, count_targets, exact_counts
 
 log = logging.getLogger(__name__)
 
@@ -123,30 +123,23 @@ class _Views:
         return len(self.paths)
 
 
-def _trunk_forward(net, x, freeze: int, split: int = COUNT_SPLIT):
-    with torch.no_grad():
-        h = net._swish(net._bn0(net._conv_stem(x)))
-        for block in net._blocks[:freeze]:
-            h = block(h)
-    for block in net._blocks[freeze:split]:
+def _trunk_forward(enc, x, freeze: int, split: int = COUNT_SPLIT):
+    """Frozen stem + blocks 0..freeze-1 (``features_at``, no grad), then the trained blocks."""
+    h = enc.features_at(x, freeze)
+    for block in enc.net._blocks[freeze:split]:
         h = block(h)
     return h
 
 
-def _exact_counts(net, head, views: _Views, freeze: int, batch: int = 50) -> dict:
+def _exact_counts(enc, head, views: _Views, freeze: int, batch: int = 50) -> dict:
+    """``counts.exact_counts`` on the val views encoded by the current trunk."""
     from model.encoders.image import preprocess
-    head.eval()
-    ok, per = [], []
+    K = len(views.paths[0])
     with torch.no_grad():
-        for k in range(len(views.paths[0])):
-            for s in range(0, len(views), batch):
-                x = preprocess([v[k] for v in views.paths[s:s + batch]])
-                hit = head(_trunk_forward(net, x, freeze)).argmax(-1) == views.Y[s:s + batch]
-                ok.append(hit.all(1))
-                per.append(hit)
-    head.train()
-    return {"exact": float(torch.cat(ok).float().mean()),
-            "per_label": [round(v, 4) for v in torch.cat(per).float().mean(0).tolist()]}
+        X = torch.stack([torch.cat([
+            _trunk_forward(enc, preprocess([v[k] for v in views.paths[s:s + batch]]), freeze)
+            for s in range(0, len(views), batch)]) for k in range(K)], 1)      # (N, K, C, 7, 7)
+    return exact_counts(head, X, views.Y)
 
 
 def train_trunk(data_root: str, render_root: str, out: str, *, extra: Optional[list] = None,
@@ -202,13 +195,13 @@ def train_trunk(data_root: str, render_root: str, out: str, *, extra: Optional[l
         x = preprocess([train.paths[i][j] for i, j in zip(b, v)])
         flip = torch.from_numpy(rng.random(tc.batch_size) < tc.flip)
         x[flip] = x[flip].flip(-1)
-        loss = F.cross_entropy(head(_trunk_forward(net, x, tc.freeze)).transpose(1, 2),
+        loss = F.cross_entropy(head(_trunk_forward(enc, x, tc.freeze)).transpose(1, 2),
                                train.Y[torch.from_numpy(b)])
         opt.zero_grad(set_to_none=True)
         loss.backward()
         opt.step()
         if step % every == 0 or step == tc.steps:
-            ev = _exact_counts(net, head, val, tc.freeze)
+            ev = _exact_counts(enc, head, val, tc.freeze)
             rec = {"step": step, "train_loss": round(loss.item(), 4), "val_exact": ev["exact"],
                    "val_per_label": dict(zip(labels, ev["per_label"])),
                    "minutes": round((time.time() - t_loop) / 60, 2)}
