@@ -103,3 +103,21 @@ def test_bench_tiny_checkpoint_in_fresh_process(tiny_checkpoints, tmp_path):
     # the high-water mark covers at least the loaded model and torch
     assert res["peak_rss_mb"] >= res["rss_after_load_mb"] > 100
     assert res["load_seconds"] > 0
+
+
+def test_bench_times_image_requests_of_the_shipped_model(tmp_path):
+    from PIL import Image
+    from skimage import data as skdata
+    from model.metrics.commands import main
+    img = tmp_path / "photo.png"
+    Image.fromarray(skdata.chelsea()).save(img)
+    out = tmp_path / "bench.json"
+    assert main(["bench", "--images", str(tmp_path / "missing.png"), "--out", str(out)]) == 2
+    assert not out.exists()
+    rc = main(["bench", "--images", str(img), "--n", "1", "--threads", "1", "--steps", "3",
+               "--resolution", "16", "--warmup", "0", "--out", str(out)])
+    assert rc == 0
+    res = json.loads(out.read_text())
+    assert res["n"] == 1 and res["requests"] == "images" and not res["failures"]
+    assert "image_encoding" in res["stages"] and "text_encoding" not in res["stages"]
+    assert res["stages"]["to_urdf"]["median"] >= res["stages"]["export"]["median"] > 0

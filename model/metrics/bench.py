@@ -40,6 +40,7 @@ class BenchConfig:
     resolution: Optional[int] = None
     export: bool = True
     prompts_file: Optional[str] = None   # default: the shipped free-form prompts
+    images: Optional[list] = None        # image files: time image requests instead of prompts
     warmup: int = 1                      # untimed generations first (lazy inits, allocator)
 
 
@@ -93,7 +94,12 @@ def run_child(cfg: BenchConfig, loader: Optional[Callable] = None) -> dict:
     from model.core.runtime import release_free_memory, settle_after_load
     from model.pipeline.api import GenerationConfig
     from .reference import freeform_prompts
-    prompts = freeform_prompts(cfg.prompts_file)
+    requests = list(cfg.images) if cfg.images else freeform_prompts(cfg.prompts_file)
+
+    def request(i: int, seed: int):
+        r = requests[i % len(requests)]
+        return r, (gen.generate(image=r, seed=seed, samples=1) if cfg.images
+                   else gen.generate(r, seed=seed, samples=1))
     if loader is None:
         from model.pipeline import Generator
         loader = Generator.load
@@ -113,16 +119,15 @@ def run_child(cfg: BenchConfig, loader: Optional[Callable] = None) -> dict:
     with tempfile.TemporaryDirectory(prefix="artformer-bench-") as tmp:
         for w in range(cfg.warmup):
             try:
-                gen.generate(prompts[w % len(prompts)], seed=cfg.seed + 10_000 + w, samples=1)
+                request(w, cfg.seed + 10_000 + w)
             except Exception as e:
                 log.warning("warm-up failed: %s", e)
         for i in range(cfg.n):
-            prompt = prompts[i % len(prompts)]
             t1 = time.perf_counter()
             try:
-                g = gen.generate(prompt, seed=cfg.seed + i, samples=1)[0]
+                _, [g] = request(i, cfg.seed + i)
             except Exception as e:
-                failures.append(f"{prompt!r}: {type(e).__name__}: {e}")
+                failures.append(f"{requests[i % len(requests)]!r}: {type(e).__name__}: {e}")
                 continue
             t = {k: float(v) for k, v in g.timings.items()}
             t["generate"] = time.perf_counter() - t1
@@ -130,7 +135,7 @@ def run_child(cfg: BenchConfig, loader: Optional[Callable] = None) -> dict:
                 gen.export(g, os.path.join(tmp, f"{i:03d}"))   # URDF + meshes, then preview
                 t["export"] = float(g.timings["export"])
                 t["preview"] = float(g.timings.get("preview", 0.0))
-            # the target figure: text in -> URDF and meshes on disk (the preview follows)
+            # the target figure: text (or image) in -> URDF and meshes on disk (the preview follows)
             t["to_urdf"] = t["generate"] + t.get("export", 0.0)
             t["total"] = time.perf_counter() - t1
             t["parts"] = float(len(g.obj.parts))
@@ -144,6 +149,7 @@ def run_child(cfg: BenchConfig, loader: Optional[Callable] = None) -> dict:
         if sel:
             by_parts[name] = {"n": len(sel), "to_urdf_median": float(np.median(sel))}
     return {"config": asdict(cfg), "checkpoint": cfg.checkpoint, "n": len(timings),
+            "requests": "images" if cfg.images else "prompts",
             "threads": cfg.threads, "cpu": _cpu_name(), "python": sys.version.split()[0],
             "load_seconds": load_s, "stages": stage_stats(timings),
             "parts_median": float(np.median(parts)) if parts else None,

@@ -132,6 +132,8 @@ def _bench_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-export", action="store_true")
     p.add_argument("--warmup", type=int, default=1)
     p.add_argument("--prompts-file", default=None)
+    p.add_argument("--images", nargs="+", default=None, metavar="IMAGE",
+                   help="time image requests on these files (cycled) instead of text prompts")
     return p
 
 
@@ -141,8 +143,14 @@ def bench_main(argv: list[str]) -> int:
     from .report import bench_markdown
     cfg = BenchConfig(n=args.n, checkpoint=args.checkpoint, seed=args.seed, threads=args.threads,
                       steps=args.steps, resolution=args.resolution, export=not args.no_export,
-                      prompts_file=args.prompts_file, warmup=args.warmup)
-    print(f"benchmarking {cfg.n} prompts in a fresh process ...", file=sys.stderr)
+                      prompts_file=args.prompts_file, warmup=args.warmup,
+                      images=[str(Path(f).resolve()) for f in args.images] if args.images else None)
+    missing = [f for f in cfg.images or [] if not Path(f).is_file()]
+    if missing:
+        print(f"artformer bench: no such image file(s): {missing[:3]}", file=sys.stderr)
+        return 2
+    print(f"benchmarking {cfg.n} {'images' if cfg.images else 'prompts'} in a fresh process ...",
+          file=sys.stderr)
     res = run_bench(cfg)
     md = bench_markdown(res)
     print(md)

@@ -133,7 +133,8 @@ def results_plots(results: dict, out_dir) -> list[str]:
 
 
 def bench_markdown(bench: dict) -> str:
-    lines = [f"{bench['n']} prompts, checkpoint `{bench.get('checkpoint') or 'shipped'}`, "
+    kind = bench.get("requests", "prompts")
+    lines = [f"{bench['n']} {kind}, checkpoint `{bench.get('checkpoint') or 'shipped'}`, "
              f"{bench.get('threads')} threads, {bench.get('cpu', '')}", "",
              "| stage | median s | p95 s | mean s |", "|---|---|---|---|"]
     for stage, s in bench["stages"].items():
@@ -141,7 +142,8 @@ def bench_markdown(bench: dict) -> str:
     by = bench.get("to_urdf_by_parts") or {}
     if by:
         lines.append("")
-        lines.append("Text -> URDF + meshes on disk (`to_urdf`), median by part count: "
+        lines.append(("Image" if kind == "images" else "Text")
+                     + " -> URDF + meshes on disk (`to_urdf`), median by part count: "
                      + ", ".join(f"{k} parts {v['to_urdf_median']:.2f} s (n={v['n']})"
                                  for k, v in by.items()) + ".")
     lines.append("")
