@@ -98,8 +98,8 @@ def run_child(cfg: BenchConfig, loader: Optional[Callable] = None) -> dict:
 
     def request(i: int, seed: int):
         r = requests[i % len(requests)]
-        return r, (gen.generate(image=r, seed=seed, samples=1) if cfg.images
-                   else gen.generate(r, seed=seed, samples=1))
+        return (gen.generate(image=r, seed=seed, samples=1) if cfg.images
+                else gen.generate(r, seed=seed, samples=1))
     if loader is None:
         from model.pipeline import Generator
         loader = Generator.load
@@ -125,7 +125,7 @@ def run_child(cfg: BenchConfig, loader: Optional[Callable] = None) -> dict:
         for i in range(cfg.n):
             t1 = time.perf_counter()
             try:
-                _, [g] = request(i, cfg.seed + i)
+                [g] = request(i, cfg.seed + i)
             except Exception as e:
                 failures.append(f"{requests[i % len(requests)]!r}: {type(e).__name__}: {e}")
                 continue
