@@ -98,9 +98,9 @@ def load_image_model(path: Union[str, os.PathLike, None] = None) -> ImageArticul
                                 for k, v in enc_info.get("config", {}).items()})
     encoder = ImageEncoder(cfg)
     if enc_info.get("trunk"):        # blocks fine-tuned by `artformer train image-trunk`
-        encoder.load_tail_state_dict({k: v.float() for k, v in enc_info["trunk"].items()})
+        encoder.load_tail_state_dict(enc_info["trunk"])
     if enc_info.get("tail"):
-        encoder.load_tail_state_dict({k: v.float() for k, v in enc_info["tail"].items()})
+        encoder.load_tail_state_dict(enc_info["tail"])
     encoder.requires_grad_(False)
     counter = None
     if ckpt.get("count_head") is not None:

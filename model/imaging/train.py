@@ -246,7 +246,7 @@ def train_image(rc: ImageRunConfig) -> Path:
                                               multiscale=ic.multiscale))
     trunk = _trunk_for(ic, init)
     if trunk is not None:
-        encoder.load_tail_state_dict({k: v.float() for k, v in trunk["state_dict"].items()})
+        encoder.load_tail_state_dict(trunk["state_dict"])
         log.info("encoder trunk: %s (blocks %d-%d fine-tuned, tag %s)", ic.trunk or ic.init,
                  trunk["freeze"], trunk["split"] - 1, trunk["tag"])
     if cfg.cond_dims.get("image") != encoder.dim:
