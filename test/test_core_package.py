@@ -41,3 +41,22 @@ def test_keep_heap_mapped_sets_glibc_thresholds_once_and_can_be_turned_off():
     assert out["1"][0] == "True" and out["0"][0] == "False"
     # 16 MB from the heap: no mapping disappears on free; by default it is its own mmap
     assert out["1"][1] == "0" and int(out["0"][1]) >= 1
+
+
+def test_half_state_stores_floats_as_fp16_copies_and_keeps_other_tensors():
+    import torch
+
+    from model.core.state import half_state
+    w = torch.tensor([1.0, 2.5], requires_grad=True)
+    h16 = torch.tensor([0.5], dtype=torch.float16)
+    steps = torch.tensor([7], dtype=torch.long)
+    out = half_state({"w": w, "h": h16, "n": steps})
+    assert out["w"].dtype == torch.float16 and out["w"].tolist() == [1.0, 2.5]
+    assert not out["w"].requires_grad
+    assert out["n"].dtype == torch.long and out["n"].tolist() == [7]
+    # copies, never views of the live weights: a later in-place update must not leak in
+    with torch.no_grad():
+        w.add_(1.0)
+    h16.add_(1.0)
+    steps.add_(1)
+    assert out["w"].tolist() == [1.0, 2.5] and out["h"].tolist() == [0.5] and out["n"].tolist() == [7]

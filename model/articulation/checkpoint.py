@@ -16,6 +16,7 @@ from pathlib import Path
 
 import torch
 
+from model.core.state import half_state
 from model.data.format import atomic_write_bytes
 
 from .config import ArticulationConfig
@@ -38,7 +39,7 @@ def save_checkpoint(path: os.PathLike, net: ArticulationTransformer, *, stats: d
     """Atomic write. ``half`` stores floating weights as fp16 (the shipped file)."""
     sd = net.state_dict()
     if half:
-        sd = {k: v.half() if v.is_floating_point() else v for k, v in sd.items()}
+        sd = half_state(sd)
     ckpt = {"kind": KIND, "format": FORMAT, "config": asdict(net.cfg),
             "train_config": train_config or {}, "state_dict": sd, "stats": stats,
             "label_table": label_table, "text_encoder": text_encoder,

@@ -19,6 +19,8 @@ from typing import Any, Optional
 
 import torch
 
+from model.core.state import half_state
+
 from .config import PriorConfig, SDFConfig, config_from_dict
 
 CKPT_FORMAT = 1
@@ -45,8 +47,8 @@ def save_checkpoint(path: os.PathLike, kind: str, model: torch.nn.Module, *, dat
     """Write atomically (temp file + rename). ``half`` stores float tensors as fp16."""
     if kind not in KINDS:
         raise ValueError(f"unknown checkpoint kind {kind!r}")
-    state = {k: (v.half() if half and v.is_floating_point() else v).detach().cpu().clone()
-             for k, v in model.state_dict().items()}
+    state = model.state_dict()
+    state = half_state(state) if half else {k: v.detach().cpu().clone() for k, v in state.items()}
     ckpt: dict[str, Any] = {"format": CKPT_FORMAT, "kind": kind, "config": asdict(model.cfg),
                             "model": state, "data_version": str(data_version), "seed": int(seed),
                             "argv": list(argv or []), "step": int(step), "extra": extra or {}}

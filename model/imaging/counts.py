@@ -35,6 +35,8 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
+from model.core.state import half_state
+
 from .features import CACHE_SPLIT
 
 log = logging.getLogger(__name__)
@@ -240,7 +242,7 @@ def train_count_head(image_ckpt: str, data_root: str, render_root: str, out: str
             break
     rec, state, per_label = best
     if half:
-        state = {k: v.half() if v.is_floating_point() else v for k, v in state.items()}
+        state = half_state(state)
     ck["count_head"] = {
         "config": asdict(cfg), "state_dict": state,
         "train": {"command": command, "seed": tc.seed, "config": asdict(tc),

@@ -30,6 +30,7 @@ from typing import Optional
 import numpy as np
 import torch
 
+from model.core.state import half_state
 from model.encoders.image import NUM_TOKENS
 
 log = logging.getLogger(__name__)
@@ -328,7 +329,7 @@ def train_image(rc: ImageRunConfig) -> Path:
     def save(path: Path, step: int, half: bool = False) -> None:
         tail_sd = encoder.tail_state_dict()
         if half:
-            tail_sd = {k: v.half() if v.is_floating_point() else v for k, v in tail_sd.items()}
+            tail_sd = half_state(tail_sd)
         extra = {"condition": "image", "targets": getattr(rc.targets, "name", "?"),
                  "image_encoder": {"config": asdict(encoder.config), "tail": tail_sd,
                                    **_trunk_entry(trunk)},
@@ -448,9 +449,9 @@ def write_half(src: Path, dst: Path) -> None:
     from model.articulation.checkpoint import read_checkpoint
     from model.data.format import atomic_write_bytes
     ck = read_checkpoint(src)
-    ck["state_dict"] = {k: v.half() if v.is_floating_point() else v for k, v in ck["state_dict"].items()}
+    ck["state_dict"] = half_state(ck["state_dict"])
     enc = ck.get("image_encoder", {})
-    enc["tail"] = {k: v.half() if v.is_floating_point() else v for k, v in enc.get("tail", {}).items()}
+    enc["tail"] = half_state(enc.get("tail", {}))
     for k in ("optimizer",):
         ck.pop(k, None)
     buf = io.BytesIO()

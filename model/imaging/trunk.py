@@ -40,6 +40,8 @@ import numpy as np
 import torch
 from torch.nn import functional as F
 
+from model.core.state import half_state
+
 from .counts import COUNT_SPLIT, CountHead, CountHeadConfig, count_targets, exact_counts
 
 log = logging.getLogger(__name__)
@@ -64,11 +66,6 @@ class TrunkTrainConfig:
     evals: int = 6                 # val evaluations over the run (the best one is kept)
     seed: int = 0
     threads: int = 2
-
-
-def _round_half(state: dict) -> dict:
-    return {k: v.detach().half() if v.is_floating_point() else v.detach().clone()
-            for k, v in state.items()}
 
 
 def trunk_tag(state: dict) -> str:
@@ -210,7 +207,7 @@ def train_trunk(data_root: str, render_root: str, out: str, *, extra: Optional[l
                      rec["train_loss"], ev["exact"], rec["minutes"])
             if best is None or ev["exact"] > best[0]["val_exact"]:
                 sd = net.state_dict()
-                best = (rec, _round_half({k: sd[k] for k in keys}), _round_half(head.state_dict()))
+                best = (rec, half_state({k: sd[k] for k in keys}), half_state(head.state_dict()))
     rec, state, head_state = best
     out_dir = Path(out)
     out_dir.mkdir(parents=True, exist_ok=True)
