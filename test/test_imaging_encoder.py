@@ -146,3 +146,47 @@ def test_multiscale_tokens_add_the_folded_fine_map(cat):
         ms.tail(h)
     with pytest.raises(ValueError, match="multiscale"):
         ImageEncoder(ImageEncoderConfig(multiscale=True, trainable_blocks=6))
+
+
+def test_larger_inputs_keep_same_padding_and_pool_to_the_token_grid(cat):
+    """448-px inputs (a 2x-upsampled view): every convolution's static padding equals
+    TensorFlow's 'same' padding at the size it really sees, the finer map is pooled to 7x7
+    before the last block, the cached-trunk path gives the same tokens, and sizes that are
+    no multiple of 224 are refused."""
+    import math
+
+    from efficientnet_lite_pytorch.utils import Conv2dStaticSamePadding
+    enc = ImageEncoder(ImageEncoderConfig(image_size=448))
+    seen = []
+
+    def hook(mod, inp, _out):
+        seen.append((mod, inp[0].shape[-1]))
+    handles = [m.register_forward_hook(hook) for m in enc.net.modules()
+               if isinstance(m, Conv2dStaticSamePadding)]
+    x = preprocess(cat, 448)
+    assert x.shape == (1, 3, 448, 448)
+    tokens = enc(x)
+    for h in handles:
+        h.remove()
+    assert len(seen) > 40
+    for mod, size in seen:
+        k, s = mod.weight.shape[-1], mod.stride[0]
+        total = max((math.ceil(size / s) - 1) * s + k - size, 0)
+        pad = mod.static_padding.padding if total else (0, 0, 0, 0)
+        assert tuple(pad) == (total // 2, total - total // 2) * 2, (k, s, size, pad)
+    assert tokens.shape == (1, 49, 1280)
+    # the map entering block 15 is pooled to 7x7; the trainer's cached path agrees
+    h = enc.features_at(x, 15)
+    assert h.shape == (1, 192, 7, 7)
+    assert torch.allclose(enc.tail(h, 15), tokens, atol=1e-5)
+    full = enc.features_at(x, 14)
+    assert full.shape[-1] == 14
+    assert torch.allclose(enc.tail(full, 14), tokens, atol=1e-5)
+    # the finer input gives other tokens than the same photo at 224 px
+    assert not torch.allclose(tokens, get_image_encoder()(preprocess(cat)), atol=1e-2)
+    assert enc.encode(cat).states.shape == (1, 49, 1280)
+    for bad in (300, 112, 0):
+        with pytest.raises(ValueError, match="multiple of 224"):
+            ImageEncoder(ImageEncoderConfig(image_size=bad))
+    with pytest.raises(ValueError, match="multiscale"):
+        ImageEncoder(ImageEncoderConfig(image_size=448, multiscale=True))

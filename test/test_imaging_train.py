@@ -22,7 +22,7 @@ def tiny_set(tmp_path_factory):
 
 
 def _run(root, trainable_blocks: int, steps: int, own_inputs: float = 0.0, multiscale=False,
-         init="none", out=None, extra=(), trunk=""):
+         init="none", out=None, extra=(), trunk="", image_size=224):
     from model.articulation.config import preset
     from model.articulation.targets import StandInTargets
     from model.imaging.train import ImageRunConfig, ImageTrainConfig, train_image
@@ -33,7 +33,8 @@ def _run(root, trainable_blocks: int, steps: int, own_inputs: float = 0.0, multi
     rc = ImageRunConfig(data=str(root / "prepared"), renders=str(root / "renders"),
                         out=str(out or root / f"run{trainable_blocks}"), net=net, train=tc,
                         image=ImageTrainConfig(trainable_blocks=trainable_blocks, init=init,
-                                               multiscale=multiscale, trunk=trunk),
+                                               multiscale=multiscale, trunk=trunk,
+                                               image_size=image_size),
                         targets=tg, progress=False, extra=list(extra))
     return train_image(rc), tg, tc
 
@@ -322,6 +323,37 @@ def test_fine_tuned_trunk_feeds_the_image_model(tiny_set, tmp_path):
     (tmp_path / "garbage.pt").write_bytes(b"not a torch file")
     with pytest.raises(TrunkError, match="cannot be read"):
         load_trunk(tmp_path / "garbage.pt")
+
+
+def test_upsampled_input_run_caches_its_own_features_and_round_trips(tiny_set, tmp_path):
+    """--image-size 448: features of the 2x-upsampled renders are cached under their own tag
+    (the 224-px cache is left alone), the checkpoint's encoder reads 448-px inputs, the loader
+    gives the tokens the trainer saw, and a size that is no multiple of 224 is refused."""
+    from model.imaging.features import cache_path, load_feature_cache
+    from model.imaging.model import load_image_model
+    from model.imaging.renders import view_paths
+    from model.imaging.train import cli_main
+
+    base, _, _ = _run(tiny_set, 0, 2, out=tmp_path / "img224")
+    c224 = cache_path(tiny_set / "renders")
+    before = c224.stat().st_mtime_ns
+    path, _, _ = _run(tiny_set, 0, 3, out=tmp_path / "img448", init=str(base), image_size=448)
+    assert c224.stat().st_mtime_ns == before
+    cache = load_feature_cache(tiny_set / "renders", tag="imagenet-448px")
+    assert cache["image_size"] == 448 and tuple(cache["feats"].shape[-3:]) == (192, 7, 7)
+    ck = torch.load(path, map_location="cpu", weights_only=False)
+    assert ck["image_encoder"]["config"]["image_size"] == 448
+    im = load_image_model(path)
+    assert im.encoder.config.image_size == 448
+    png = str(view_paths(tiny_set / "renders", "cabinet")[1])
+    tokens, _ = im.encode(png)
+    with torch.no_grad():
+        cached = im.encoder.tail(cache["feats"][cache["ids"].index("cabinet"), 1:2].float(),
+                                 start=cache["split"])
+    assert torch.allclose(tokens, cached, atol=2e-2)
+    assert not torch.allclose(tokens, load_image_model(base).encode(png)[0], atol=1e-2)
+    assert cli_main(["--data", str(tiny_set / "prepared"), "--renders", str(tiny_set / "renders"),
+                     "--out", str(tmp_path / "bad"), "--image-size", "300", "--init", "none"]) == 2
 
 
 def test_generator_follows_the_image_count_head(tiny_set, tmp_path):

@@ -51,7 +51,10 @@ class ImageInputError(ValueError):
 @dataclass
 class ImageEncoderConfig:
     weights: str = "imagenet"       # 'imagenet' (the packaged file), 'none' (random), or a path
-    image_size: int = IMAGE_SIZE
+    image_size: int = IMAGE_SIZE    # input side: 224, or 224·m (448: the network sees small
+                                    # parts twice as large; the map is pooled back to 7×7)
+    grid_pool_at: int = NUM_BLOCKS - 1   # with image_size > 224, the map entering this block
+                                    # (16: the head conv) is average-pooled to the 7×7 grid
     trainable_blocks: int = 0       # 0 = frozen; n = fine-tune the last n blocks + head conv
     multiscale: bool = False        # add the folded 14×14 block-10 map to every token (frozen)
     background: tuple[float, float, float] = (1.0, 1.0, 1.0)   # for alpha and square padding
@@ -202,9 +205,16 @@ class ImageEncoder(torch.nn.Module):
         cfg = self.config
         if not 0 <= cfg.trainable_blocks <= NUM_BLOCKS:
             raise ValueError(f"trainable_blocks must be in [0, {NUM_BLOCKS}], got {cfg.trainable_blocks}")
-        if cfg.image_size != IMAGE_SIZE:
-            raise ValueError(f"EfficientNet-Lite0 uses static 'same' padding for {IMAGE_SIZE}px "
-                             f"inputs; image_size={cfg.image_size} is not supported")
+        # The package pads every convolution statically for 224-px inputs. TensorFlow's 'same'
+        # padding depends only on kernel and stride while every stride-2 input is even, so it
+        # is the same for any multiple of 224 (448 -> 224 -> ... -> 14: all even).
+        if cfg.image_size < IMAGE_SIZE or cfg.image_size % IMAGE_SIZE:
+            raise ValueError(f"image_size must be a multiple of {IMAGE_SIZE} (the 7×7 token grid); "
+                             f"got {cfg.image_size}")
+        if not FINE_SPLIT <= cfg.grid_pool_at <= NUM_BLOCKS:
+            raise ValueError(f"grid_pool_at must be in [{FINE_SPLIT}, {NUM_BLOCKS}], got {cfg.grid_pool_at}")
+        if cfg.multiscale and cfg.image_size != IMAGE_SIZE:
+            raise ValueError(f"multiscale tokens need {IMAGE_SIZE}-px inputs")
         try:
             from efficientnet_lite_pytorch import EfficientNet
         except ImportError as e:  # pragma: no cover - install problem
@@ -262,13 +272,26 @@ class ImageEncoder(torch.nn.Module):
         self.net.eval()
         return self
 
+    def _to_grid(self, h: torch.Tensor) -> torch.Tensor:
+        """A map finer than the 7×7 token grid (inputs over 224 px) → its 7×7 average."""
+        return h if tuple(h.shape[-2:]) == GRID else torch.nn.functional.adaptive_avg_pool2d(h, GRID)
+
+    def _run_blocks(self, h: torch.Tensor, start: int, stop: int) -> torch.Tensor:
+        """Blocks ``start``..``stop - 1``; the map entering block ``grid_pool_at`` (and so
+        every output from there on) is on the 7×7 grid."""
+        at = self.config.grid_pool_at
+        for i in range(start, stop):
+            if i == at:
+                h = self._to_grid(h)
+            h = self.net._blocks[i](h)
+        return self._to_grid(h) if stop >= at else h
+
     def features_at(self, x: torch.Tensor, n_blocks: int) -> torch.Tensor:
-        """(B, 3, 224, 224) normalised → output of the stem + the first ``n_blocks`` blocks."""
+        """(B, 3, S, S) normalised → output of the stem + the first ``n_blocks`` blocks."""
         net = self.net
         with torch.no_grad():
-            h = net._swish(net._bn0(net._conv_stem(x)))               # (B, 32, 112, 112)
-            for block in net._blocks[:n_blocks]:
-                h = block(h)
+            h = net._swish(net._bn0(net._conv_stem(x)))               # (B, 32, S/2, S/2)
+            h = self._run_blocks(h, 0, n_blocks)
         return h
 
     def trunk(self, x: torch.Tensor) -> torch.Tensor:
@@ -281,9 +304,7 @@ class ImageEncoder(torch.nn.Module):
             return self.trunk(x), None
         fine = self.features_at(x, FINE_SPLIT)                        # (B, 112, 14, 14)
         with torch.no_grad():
-            h = fine
-            for block in self.net._blocks[FINE_SPLIT:self.split]:
-                h = block(h)
+            h = self._run_blocks(fine, FINE_SPLIT, self.split)
         return h, fine
 
     def tail(self, h: torch.Tensor, start: int | None = None,
@@ -293,9 +314,8 @@ class ImageEncoder(torch.nn.Module):
         required with ``multiscale`` and ignored without."""
         net = self.net
         start = self.split if start is None else start
-        for block in net._blocks[start:]:
-            h = block(h)
-        h = net._swish(net._bn1(net._conv_head(h)))                    # (B, 1280, 7, 7)
+        h = self._run_blocks(h, start, NUM_BLOCKS)
+        h = net._swish(net._bn1(net._conv_head(self._to_grid(h))))     # (B, 1280, 7, 7)
         if self.config.multiscale:
             if fine is None:
                 raise ValueError("a multiscale image encoder needs the 14x14 block-10 features")
@@ -308,10 +328,8 @@ class ImageEncoder(torch.nn.Module):
         if not FINE_SPLIT <= at <= NUM_BLOCKS:
             raise ValueError(f"features can be taken between blocks {FINE_SPLIT} and {NUM_BLOCKS}")
         fine = self.features_at(x, FINE_SPLIT)                        # (B, 112, 14, 14)
-        h = fine
         with torch.no_grad():
-            for block in self.net._blocks[FINE_SPLIT:at]:
-                h = block(h)
+            h = self._run_blocks(fine, FINE_SPLIT, at)
         return self.tail(h, start=at, fine=fine if self.config.multiscale else None), h
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:

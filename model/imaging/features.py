@@ -10,7 +10,9 @@ same way in its own file (~44 KB a view).
     OUT/features/trunk<split>.pt   {"ids": [...], "feats": (N, K, C, H, W) fp16,
                                     "split": int, "render_version": int, "weights": str}
     OUT/features/trunk<split>-<tag>.pt   the same with a fine-tuned trunk (model.imaging.trunk;
-                                    "weights" = the trunk's content hash)
+                                    "weights" = the trunk's content hash) or another input
+                                    size (tag "<weights>-448px": 2x-upsampled views, maps
+                                    pooled to 7×7; ``feature_tag``)
 """
 from __future__ import annotations
 
@@ -31,6 +33,17 @@ CACHE_SPLIT = 15        # trunk = stem + blocks 0..14; the cache serves trainabl
 IMAGENET = "imagenet"   # the tag of the packaged ImageNet weights
 
 
+def feature_tag(encoder, trunk_tag: str = IMAGENET) -> str:
+    """The cache tag of an encoder: its weights' tag, plus the input size unless 224 px
+    (and where the finer map is pooled, unless before the last block)."""
+    from model.encoders.image import IMAGE_SIZE, NUM_BLOCKS
+    cfg = encoder.config
+    if cfg.image_size == IMAGE_SIZE:
+        return trunk_tag
+    pool = "" if cfg.grid_pool_at == NUM_BLOCKS - 1 else f"-pool{cfg.grid_pool_at}"
+    return f"{trunk_tag}-{cfg.image_size}px{pool}"
+
+
 def cache_path(render_root: os.PathLike, split: int = CACHE_SPLIT, tag: str = IMAGENET) -> Path:
     """OUT/features/trunk<split>.pt for the ImageNet weights, trunk<split>-<tag>.pt for a
     fine-tuned trunk (model.imaging.trunk)."""
@@ -42,8 +55,9 @@ def build_feature_cache(render_root: os.PathLike, ids: list[str], *, batch_size:
                         progress: bool = False, split: int = CACHE_SPLIT,
                         encoder=None, tag: str = IMAGENET) -> dict:
     """Features after the first ``split`` encoder blocks of every view of ``ids``
-    (already-cached ids are reused). ``encoder`` with fine-tuned trunk weights needs the
-    ``tag`` of those weights (``trunk_tag``); the default is the ImageNet encoder.
+    (already-cached ids are reused). An ``encoder`` other than the default (ImageNet
+    weights, 224 px) needs its ``tag`` (``feature_tag``: the fine-tuned trunk's
+    ``trunk_tag`` and the input size).
 
     Batches of 16 with the heap kept mapped (``keep_heap_mapped``) encode 34.9 views/s on two
     threads, against 16.4 with batches of 32 and glibc's default mmap threshold (session 11,
@@ -51,15 +65,19 @@ def build_feature_cache(render_root: os.PathLike, ids: list[str], *, batch_size:
     import io
 
     from model.core.runtime import keep_heap_mapped
-    from model.encoders.image import ImageEncoder, ImageEncoderConfig, preprocess
+    from model.encoders.image import IMAGE_SIZE, ImageEncoder, ImageEncoderConfig, preprocess
     keep_heap_mapped()
     if (encoder is None) != (tag == IMAGENET):
-        raise ValueError("a feature cache of a fine-tuned trunk needs both its encoder and its tag")
+        raise ValueError("a feature cache of a fine-tuned or resized encoder needs both the "
+                         "encoder and its tag (feature_tag)")
     manifest = load_render_manifest(render_root)
     path = cache_path(render_root, split, tag)
+    enc = encoder if encoder is not None else ImageEncoder(ImageEncoderConfig())
+    size = enc.config.image_size
     cache = load_feature_cache(render_root, split, tag) if path.exists() else None
     if cache is not None and (cache.get("render_version") != manifest["render_version"]
-                              or cache.get("weights", IMAGENET) != tag):
+                              or cache.get("weights", IMAGENET) != tag
+                              or cache.get("image_size", IMAGE_SIZE) != size):
         cache = None
     have = {} if cache is None else {i: k for k, i in enumerate(cache["ids"])}
     ids = rendered_ids(render_root, list(dict.fromkeys(ids)))      # unique, in order
@@ -68,7 +86,6 @@ def build_feature_cache(render_root: os.PathLike, ids: list[str], *, batch_size:
         return cache
     if not todo:
         raise ValueError(f"no rendered views of the given objects in {render_root}")
-    enc = encoder if encoder is not None else ImageEncoder(ImageEncoderConfig())
     views = int(manifest["views"])
     new = None
     flat = [(n, k, p) for n, oid in enumerate(todo) for k, p in enumerate(view_paths(render_root, oid))]
@@ -78,7 +95,7 @@ def build_feature_cache(render_root: os.PathLike, ids: list[str], *, batch_size:
         rng = tqdm(rng, desc=f"encode renders (blocks 0-{split - 1})", unit="batch")
     for s in rng:
         chunk = flat[s:s + batch_size]
-        x = preprocess([str(p) for _, _, p in chunk])                  # (b, 3, 224, 224)
+        x = preprocess([str(p) for _, _, p in chunk], size)            # (b, 3, S, S)
         h = enc.features_at(x, split).numpy().astype(np.float16)      # (b, C, H, W)
         if new is None:
             new = np.zeros((len(todo), views, *h.shape[1:]), np.float16)
@@ -90,7 +107,7 @@ def build_feature_cache(render_root: os.PathLike, ids: list[str], *, batch_size:
     else:
         all_ids, feats = todo, new
     out = {"ids": all_ids, "feats": torch.from_numpy(feats), "split": split,
-           "render_version": manifest["render_version"], "weights": tag}
+           "render_version": manifest["render_version"], "weights": tag, "image_size": size}
     buf = io.BytesIO()
     torch.save(out, buf)
     atomic_write_bytes(path, buf.getvalue())

@@ -47,6 +47,8 @@ class ImageTrainConfig:
     multiscale: bool = False       # tokens also carry the folded 14x14 block-10 map (1728-d)
     trunk: str = ""                # fine-tuned trunk (`artformer train image-trunk`); "" = the
                                    # init image checkpoint's, else ImageNet's
+    image_size: int = 224          # encoder input side (448: 2x-upsampled renders, the finer
+                                   # map pooled to the 7x7 token grid before the last block)
 
 
 @dataclass
@@ -212,7 +214,7 @@ def train_image(rc: ImageRunConfig) -> Path:
                                           own_input_tokens, prepare_data)
     from model.encoders.image import FINE_SPLIT, GRID, ImageEncoder, ImageEncoderConfig
 
-    from .features import ViewFeatures, build_feature_cache
+    from .features import IMAGENET, ViewFeatures, build_feature_cache, feature_tag
     from .renders import load_render_manifest, rendered_ids
 
     tc, ic = rc.train, rc.image
@@ -244,7 +246,7 @@ def train_image(rc: ImageRunConfig) -> Path:
         cfg.cs_dim = int(tg.cs_dim)
         cfg.num_codebooks, cfg.codebook_size = int(tg.num_codebooks), int(tg.codebook_size)
     encoder = ImageEncoder(ImageEncoderConfig(trainable_blocks=ic.trainable_blocks,
-                                              multiscale=ic.multiscale))
+                                              multiscale=ic.multiscale, image_size=ic.image_size))
     trunk = _trunk_for(ic, init)
     if trunk is not None:
         encoder.load_tail_state_dict(trunk["state_dict"])
@@ -274,10 +276,12 @@ def train_image(rc: ImageRunConfig) -> Path:
     extra, extra_info = _extra_items(rc, data, view, cfg.predict_z, out / "cache")
     t0 = time.time()
 
+    tag = feature_tag(encoder, IMAGENET if trunk is None else trunk["tag"])
+
     def features(root, ids, split=None):
         kw = {} if split is None else {"split": split}
-        if trunk is not None:
-            kw.update(encoder=encoder, tag=trunk["tag"])
+        if tag != IMAGENET:
+            kw.update(encoder=encoder, tag=tag)
         return ViewFeatures(build_feature_cache(root, ids, progress=rc.progress, **kw))
 
     feats = features(rc.renders, [it.id for it in tr + va])
@@ -486,6 +490,10 @@ def _parser():
     ap.add_argument("--multiscale", action="store_true",
                     help="tokens also carry the 14x14 block-10 features (1728-d); from a "
                          "1280-d image checkpoint the projection is widened with zeros")
+    ap.add_argument("--image-size", type=int, default=224, metavar="PX",
+                    help="encoder input side, a multiple of 224 (448: the renders upsampled 2x so "
+                         "small parts cover 4x the feature-map cells; the map entering the last "
+                         "block is pooled back to 7x7); default 224")
     ap.add_argument("--no-positions", action="store_true",
                     help="no 2-D position embedding of the 7x7 image tokens (the earlier model)")
     ap.add_argument("--extra-train", nargs=2, action="append", default=[],
@@ -567,7 +575,12 @@ def cli_main(argv: list[str]) -> int:
     targets = make_targets(args.prior, args.sdf, net_cfg)
     ic = ImageTrainConfig(trainable_blocks=args.trainable_blocks, tail_lr_mult=args.tail_lr_mult,
                           init=args.init, positions=not args.no_positions,
-                          multiscale=args.multiscale, trunk=args.trunk or "")
+                          multiscale=args.multiscale, trunk=args.trunk or "",
+                          image_size=args.image_size)
+    if args.image_size < 224 or args.image_size % 224:
+        print(f"artformer train image: --image-size must be a multiple of 224, got {args.image_size}",
+              flush=True)
+        return 2
     if ic.init.lower() != "none" and not Path(ic.init).exists():
         print(f"artformer train image: --init {ic.init} does not exist; train the text model "
               f"first or pass --init none", flush=True)
