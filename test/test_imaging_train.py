@@ -236,6 +236,14 @@ def test_count_head_learns_counts_and_holds_decoding_to_them(tiny_set, tmp_path)
     assert tokens.shape == (1, 49, 1280) and torch.equal(plan, truth)
     t_plain, _ = load_image_model(image_ckpt).encode(png)
     assert torch.allclose(tokens, t_plain, atol=1e-5)   # one pass gives the same tokens
+    # a list longer than one encoder pass (ENCODE_BATCH) gives every image its own row
+    many = [png, str(view_paths(tiny_set / "renders", "bottle")[1])] * 3
+    t6, m6, p6 = im.condition(many)
+    assert t6.shape == (6, 49, 1280) and m6.shape == (6, 49) and p6.shape == (6, len(labels))
+    assert torch.allclose(t6[4:5], tokens, atol=1e-5) and torch.equal(p6[2:3], plan)
+    assert not torch.allclose(t6[0], t6[1], atol=1e-3)
+    t6_plain, _ = load_image_model(image_ckpt).encode(many)
+    assert torch.allclose(t6_plain, t6, atol=1e-5)
 
     for tree in im.decode_image(png, samples=3, seed=0, max_nodes=16, temperature=1.0):
         counts = tree.summary()["counts"]

@@ -7,7 +7,10 @@ TF-Lite models were trained ((x·255 − 127) / 128); the final 7×7×1280 featu
 1×1 head convolution, before pooling) becomes 49 tokens of width 1280. With ``multiscale``
 each token also carries the 2×2 cell of the finer 14×14×112 map (the output of block 10)
 under it, folded into 448 channels: still 49 tokens on the 7×7 grid, width 1728, with four
-times the spatial detail for small parts (knobs, buttons, narrow drawers).
+times the spatial detail for small parts (knobs, buttons, narrow drawers). With
+``image_size = 448`` the image is resized to 448×448 instead and the network runs at twice
+the resolution; the 14×14 map entering the last block (``grid_pool_at``) is averaged 2×2 back
+to the 7×7 grid, so the tokens keep their shape.
 
 The encoder is frozen by default. ``trainable_blocks = n`` unfreezes the last ``n`` MBConv
 blocks and the head convolution for light fine-tuning; the frozen trunk before them can then
