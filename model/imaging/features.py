@@ -63,7 +63,7 @@ def build_feature_cache(render_root: os.PathLike, ids: list[str], *, batch_size:
     threads, against 16.4 with batches of 32 and glibc's default mmap threshold (session 11,
     runs of 480 views through a fine-tuned trunk). Smaller batches are faster still: 192 v1
     renders, one thread, the other core busy, 28 views/s in batches of 4 against 19 in 16
-    (two threads: 27-30 against 23); at 448 px 6.8 views/s in 4s (session 13,
+    (two threads: 27-30 against 23); at 448 px 6.8 views/s in batches of 4 (session 13,
     ``scripts/bench_feature_batch.py``)."""
     import io
 
@@ -75,8 +75,7 @@ def build_feature_cache(render_root: os.PathLike, ids: list[str], *, batch_size:
                          "encoder and its tag (feature_tag)")
     manifest = load_render_manifest(render_root)
     path = cache_path(render_root, split, tag)
-    enc = encoder if encoder is not None else ImageEncoder(ImageEncoderConfig())
-    size = enc.config.image_size
+    size = encoder.config.image_size if encoder is not None else IMAGE_SIZE
     cache = load_feature_cache(render_root, split, tag) if path.exists() else None
     if cache is not None and (cache.get("render_version") != manifest["render_version"]
                               or cache.get("weights", IMAGENET) != tag
@@ -89,6 +88,7 @@ def build_feature_cache(render_root: os.PathLike, ids: list[str], *, batch_size:
         return cache
     if not todo:
         raise ValueError(f"no rendered views of the given objects in {render_root}")
+    enc = encoder if encoder is not None else ImageEncoder(ImageEncoderConfig())
     views = int(manifest["views"])
     new = None
     flat = [(n, k, p) for n, oid in enumerate(todo) for k, p in enumerate(view_paths(render_root, oid))]
