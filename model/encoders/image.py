@@ -38,6 +38,10 @@ log = logging.getLogger(__name__)
 IMAGE_SIZE = 224
 GRID = (7, 7)            # rows, cols of the final feature map
 NUM_TOKENS = GRID[0] * GRID[1]
+# images per network pass: big batches of large feature maps run slower per image on a CPU
+# (192 v1 renders, one thread, the other core busy: 224 px 28 views/s in passes of 4 against
+# 19 in 16; 448 px 3.9 against 1.5; `python scripts/bench_feature_batch.py`)
+ENCODE_BATCH = 4
 TOKEN_DIM = 1280
 NUM_BLOCKS = 16          # MBConv blocks of EfficientNet-Lite0
 FINE_SPLIT = 11          # blocks 0..10 -> the 14×14×112 map the multiscale tokens add
@@ -49,6 +53,13 @@ ImageLike = Union[str, os.PathLike, np.ndarray, "PIL.Image.Image"]  # noqa: F821
 
 class ImageInputError(ValueError):
     """An image could not be read or has an unusable shape / type; the message says why."""
+
+
+def check_image_size(size: int) -> None:
+    """ValueError unless ``size`` is a multiple of 224 (the 7×7 token grid at stride 32)."""
+    if size < IMAGE_SIZE or size % IMAGE_SIZE:
+        raise ValueError(f"image_size must be a multiple of {IMAGE_SIZE} (the 7×7 token grid); "
+                         f"got {size}")
 
 
 @dataclass
@@ -211,9 +222,7 @@ class ImageEncoder(torch.nn.Module):
         # The package pads every convolution statically for 224-px inputs. TensorFlow's 'same'
         # padding depends only on kernel and stride while every stride-2 input is even, so it
         # is the same for any multiple of 224 (448 -> 224 -> ... -> 14: all even).
-        if cfg.image_size < IMAGE_SIZE or cfg.image_size % IMAGE_SIZE:
-            raise ValueError(f"image_size must be a multiple of {IMAGE_SIZE} (the 7×7 token grid); "
-                             f"got {cfg.image_size}")
+        check_image_size(cfg.image_size)
         if not FINE_SPLIT <= cfg.grid_pool_at <= NUM_BLOCKS:
             raise ValueError(f"grid_pool_at must be in [{FINE_SPLIT}, {NUM_BLOCKS}], got {cfg.grid_pool_at}")
         if cfg.multiscale and cfg.image_size != IMAGE_SIZE:
@@ -317,8 +326,8 @@ class ImageEncoder(torch.nn.Module):
         required with ``multiscale`` and ignored without."""
         net = self.net
         start = self.split if start is None else start
-        h = self._run_blocks(h, start, NUM_BLOCKS)
-        h = net._swish(net._bn1(net._conv_head(self._to_grid(h))))     # (B, 1280, 7, 7)
+        h = self._run_blocks(h, start, NUM_BLOCKS)                    # on the 7×7 grid
+        h = net._swish(net._bn1(net._conv_head(h)))                    # (B, 1280, 7, 7)
         if self.config.multiscale:
             if fine is None:
                 raise ValueError("a multiscale image encoder needs the 14x14 block-10 features")
@@ -346,7 +355,8 @@ class ImageEncoder(torch.nn.Module):
             return self.net(x)
 
     @torch.inference_mode()
-    def encode(self, images: Union[ImageLike, Sequence[ImageLike]], batch_size: int = 32) -> EncodedImage:
+    def encode(self, images: Union[ImageLike, Sequence[ImageLike]],
+               batch_size: int = ENCODE_BATCH) -> EncodedImage:
         """Images (paths / arrays / PIL) → tokens, mask and pooled vector."""
         x = preprocess(images, self.config.image_size, self.config.background)   # (B, 3, S, S)
         states = torch.cat([self(x[i:i + batch_size]) for i in range(0, len(x), batch_size)])

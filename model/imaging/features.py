@@ -51,7 +51,7 @@ def cache_path(render_root: os.PathLike, split: int = CACHE_SPLIT, tag: str = IM
     return Path(render_root) / "features" / f"{name}.pt"
 
 
-def build_feature_cache(render_root: os.PathLike, ids: list[str], *, batch_size: int = 4,
+def build_feature_cache(render_root: os.PathLike, ids: list[str], *, batch_size: int = 0,
                         progress: bool = False, split: int = CACHE_SPLIT,
                         encoder=None, tag: str = IMAGENET) -> dict:
     """Features after the first ``split`` encoder blocks of every view of ``ids``
@@ -61,14 +61,16 @@ def build_feature_cache(render_root: os.PathLike, ids: list[str], *, batch_size:
 
     Batches of 16 with the heap kept mapped (``keep_heap_mapped``) encode 34.9 views/s on two
     threads, against 16.4 with batches of 32 and glibc's default mmap threshold (session 11,
-    runs of 480 views through a fine-tuned trunk). Smaller batches are faster still: 192 v1
-    renders, one thread, the other core busy, 28 views/s in batches of 4 against 19 in 16
-    (two threads: 27-30 against 23); at 448 px 6.8 views/s in batches of 4 (session 13,
-    ``scripts/bench_feature_batch.py``)."""
+    runs of 480 views through a fine-tuned trunk). Smaller passes are faster still, so the
+    default (``batch_size`` 0) is the encoder's ``ENCODE_BATCH`` (session 13: 28 views/s in
+    passes of 4 against 19 in 16 on one thread, 27-30 against 23 on two; 448 px 6.8 views/s
+    a thread in passes of 4)."""
     import io
 
     from model.core.runtime import keep_heap_mapped
-    from model.encoders.image import IMAGE_SIZE, ImageEncoder, ImageEncoderConfig, preprocess
+    from model.encoders.image import (ENCODE_BATCH, IMAGE_SIZE, ImageEncoder, ImageEncoderConfig,
+                                      preprocess)
+    batch_size = batch_size or ENCODE_BATCH
     keep_heap_mapped()
     if (encoder is None) != (tag == IMAGENET):
         raise ValueError("a feature cache of a fine-tuned or resized encoder needs both the "

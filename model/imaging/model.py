@@ -21,12 +21,11 @@ from typing import Optional, Union
 
 import torch
 
-from model.encoders.image import ImageEncoder, ImageEncoderConfig, ImageLike, preprocess
+from model.encoders.image import ENCODE_BATCH, ImageEncoder, ImageEncoderConfig, ImageLike, preprocess
 
 log = logging.getLogger(__name__)
 
 SHIPPED = Path(__file__).resolve().parent.parent / "weights" / "image_small.pt"
-ENCODE_BATCH = 4          # images per encoder pass in ``condition``
 
 
 class ImageModelError(RuntimeError):
@@ -51,9 +50,6 @@ class ImageArticulationModel:
         """One image or a list → tokens (B, 49, D), mask (B, 49) bool and the count head's
         per-label counts (B, len(count_labels)), or None without a count head."""
         x = preprocess(images, self.encoder.config.image_size, self.encoder.config.background)
-        # a few images per pass: big batches of large feature maps run slower per image on a
-        # CPU (one thread, the other core busy: 448 px 3.9 images/s in passes of 4, 1.5 in
-        # passes of 16; 224 px 29 vs 15)
         chunks = [x[s:s + ENCODE_BATCH] for s in range(0, len(x), ENCODE_BATCH)]
         if self.counter is None:
             tokens, plan = torch.cat([self.encoder(c) for c in chunks]), None     # (B, 49, D)

@@ -31,7 +31,7 @@ import numpy as np
 import torch
 
 from model.core.state import half_state
-from model.encoders.image import NUM_TOKENS
+from model.encoders.image import NUM_TOKENS, check_image_size
 
 log = logging.getLogger(__name__)
 
@@ -577,9 +577,10 @@ def cli_main(argv: list[str]) -> int:
                           init=args.init, positions=not args.no_positions,
                           multiscale=args.multiscale, trunk=args.trunk or "",
                           image_size=args.image_size)
-    if args.image_size < 224 or args.image_size % 224:
-        print(f"artformer train image: --image-size must be a multiple of 224, got {args.image_size}",
-              flush=True)
+    try:
+        check_image_size(args.image_size)
+    except ValueError as e:
+        print(f"artformer train image: --image-size: {e}", flush=True)
         return 2
     if ic.init.lower() != "none" and not Path(ic.init).exists():
         print(f"artformer train image: --init {ic.init} does not exist; train the text model "
