@@ -426,3 +426,84 @@ def test_alignment_report_with_visibility_breakdown(tiny_set, tmp_path):
     assert [g["renders"] for k, g in b.items() if k != "parts_under_threshold"] == [1, 1, 2]
     assert b["every part >= 16 px"]["alignment"] == 1.0 and b["a part hidden (0 px)"]["alignment"] == 0.5
     assert b["parts_under_threshold"] == {"body": 0.0, "knob": 0.75}
+
+
+def test_centre_map_counts_visible_part_centres_per_label_and_cell():
+    """A part-id image → per label and 32-px cell, the parts whose visible pixels are centred
+    there; hidden parts and labels outside the list are not counted; mirroring the image
+    mirrors the map."""
+    from model.imaging.partmaps import centre_map
+    ids = np.full((224, 224), -1, np.int64)
+    ids[10:200, 40:180] = 0          # body, centre (105, 110) → cell (3, 3)
+    ids[20:30, 40:50] = 1            # handle, centre (25, 45) → cell (0, 1)
+    ids[20:28, 150:158] = 2          # handle, centre (24, 154) → cell (0, 4)
+    ids[100:104, 200:204] = 3        # screw: not a counted label
+    # part 4 (a handle) is hidden: no pixels
+    m = centre_map(ids, ["body", "handle", "handle", "screw", "handle"], ["body", "door", "handle"])
+    assert m.shape == (3, 7, 7) and m.dtype == np.uint8
+    assert m[0, 3, 3] == 1 and m[0].sum() == 1
+    assert m[1].sum() == 0
+    assert m[2, 0, 1] == 1 and m[2, 0, 4] == 1 and m[2].sum() == 2
+    assert np.array_equal(centre_map(ids[:, ::-1], ["body", "handle", "handle", "screw", "handle"],
+                                     ["body", "door", "handle"]), m[..., ::-1])
+    ids2 = ids.copy()
+    ids2[22:26, 42:46] = 4           # a second handle centred in the first one's cell
+    m2 = centre_map(ids2, ["body", "handle", "handle", "screw", "handle"], ["body", "door", "handle"])
+    assert m2[2, 0, 1] == 2
+    assert centre_map(np.full((224, 224), -1), ["body"], ["body"]).sum() == 0
+
+
+def test_partmaps_of_a_render_set_and_a_trunk_trained_on_them(tiny_set, tmp_path):
+    """`artformer data partmaps` maps every rendered view (each part seen in the render is
+    counted once); the file is reused; `image-trunk --centre-weight` learns the maps beside
+    the counts and records both losses; --init-trunk starts from a trunk, and a missing map
+    file or a checkpoint without a trunk is refused with a message."""
+    import shutil
+
+    from model.imaging.commands import main as commands_main
+    from model.imaging.partmaps import build_partmaps, load_partmaps, partmap_path
+    from model.imaging.render import part_pixels
+    from model.imaging.renders import object_from_record, view_specs
+    from model.imaging.trunk import cli_main, initial_trunk, load_trunk
+    from model.data import format as fmt
+
+    image_ckpt, _, _ = _run(tiny_set, 0, 2, out=tmp_path / "img")
+    renders = tmp_path / "renders"
+    shutil.copytree(tiny_set / "renders", renders)
+    common = ["--data", str(tiny_set / "prepared"), "--renders", str(renders)]
+    trunk_args = common + ["--image", str(image_ckpt), "--steps", "24", "--batch-size", "4",
+                           "--freeze", "12", "--evals", "2", "--lr", "1e-3", "--threads", "1"]
+    assert cli_main(trunk_args + ["--out", str(tmp_path / "t0"), "--centre-weight", "0.2"]) == 2
+    assert commands_main(["data", "partmaps", *common, "--image", str(image_ckpt), "--workers", "1"]) == 0
+    labels = list(torch.load(image_ckpt, weights_only=False)["config"]["count_labels"])
+    pm = load_partmaps(renders, labels)
+    assert sorted(pm["ids"]) == ["bottle", "cabinet"]
+    assert tuple(pm["maps"].shape) == (2, 2, len(labels), 7, 7) and pm["maps"].dtype == torch.uint8
+    for k, oid in enumerate(pm["ids"]):
+        obj = object_from_record(tiny_set / "prepared", fmt.load_record(tiny_set / "prepared", oid))
+        for v, spec in enumerate(view_specs(renders, oid)):
+            seen = part_pixels(obj, spec) > 0
+            for li, lab in enumerate(labels):
+                want = sum(1 for p, s in zip(obj.parts, seen) if s and p.label == lab)
+                assert int(pm["maps"][k, v, li].sum()) == want, (oid, v, lab)
+    stamp = partmap_path(renders).stat().st_mtime_ns
+    build_partmaps(tiny_set / "prepared", renders, labels, progress=False)
+    assert partmap_path(renders).stat().st_mtime_ns == stamp          # complete: not rewritten
+
+    assert cli_main(trunk_args + ["--out", str(tmp_path / "t1"), "--centre-weight", "0.2"]) == 0
+    tr = load_trunk(tmp_path / "t1")
+    hist = tr["train"]["history"]
+    assert tr["train"]["config"]["centre_weight"] == 0.2 and "centre_head" in tr
+    assert hist[-1]["centre_loss"] < hist[0]["centre_loss"] or hist[-1]["centre_loss"] < 1.0
+    assert all("count_loss" in h for h in hist)
+    # a second run starts from the first one's blocks
+    start = initial_trunk(tmp_path / "t1" / "trunk.pt", 12)
+    assert all(torch.equal(start[k], v.float()) for k, v in tr["state_dict"].items())
+    with pytest.raises(ValueError, match="not 4"):
+        initial_trunk(tmp_path / "t1" / "trunk.pt", 4)
+    with pytest.raises(ValueError, match="neither"):
+        initial_trunk(image_ckpt, 12)
+    assert cli_main(trunk_args + ["--out", str(tmp_path / "t2"), "--steps", "2", "--evals", "1",
+                                  "--init-trunk", str(tmp_path / "t1" / "trunk.pt")]) == 0
+    assert load_trunk(tmp_path / "t2")["train"]["config"]["init"].endswith("trunk.pt")
+    assert cli_main(trunk_args + ["--out", str(tmp_path / "t3"), "--init-trunk", str(image_ckpt)]) == 2

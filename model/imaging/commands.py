@@ -1,4 +1,4 @@
-"""`artformer data render`, `artformer train image`, `image-trunk` and `image-counts` (issue 8)."""
+"""`artformer data render`, `data partmaps`, `artformer train image`, `image-trunk` and `image-counts` (issue 8)."""
 from __future__ import annotations
 
 import argparse
@@ -33,11 +33,36 @@ def _render(argv: list[str]) -> int:
     return 1 if rep.failed and not rep.rendered else 0
 
 
+def _partmaps(argv: list[str]) -> int:
+    ap = argparse.ArgumentParser(prog="artformer data partmaps",
+                                 description="Per-label part-centre maps (7x7) of every rendered view, "
+                                             "for `artformer train image-trunk --centre-weight`.")
+    ap.add_argument("--data", default="data/prepared/v1", help="prepared dataset folder")
+    ap.add_argument("--renders", default="data/renders/v1", help="its render folder")
+    ap.add_argument("--image", default=None,
+                    help="image checkpoint whose count labels are mapped (default: the shipped one)")
+    ap.add_argument("--workers", type=int, default=2, help="processes (default 2)")
+    args = ap.parse_args(argv)
+    from .partmaps import build_partmaps, partmap_path
+    from .trunk import count_labels_of
+    try:
+        labels = count_labels_of(args.image)
+        pm = build_partmaps(args.data, args.renders, labels, workers=args.workers, progress=True)
+    except (FileNotFoundError, ValueError) as e:
+        print(f"artformer data partmaps: {e}", file=sys.stderr)
+        return 2
+    print(f"part maps of {len(pm['ids'])} objects ({len(pm['failed'])} failed) -> "
+          f"{partmap_path(args.renders)}")
+    return 1 if pm["failed"] else 0
+
+
 def main(argv: list[str]) -> int:
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     words = tuple(argv[:2])
     if words == ("data", "render"):
         return _render(argv[2:])
+    if words == ("data", "partmaps"):
+        return _partmaps(argv[2:])
     if words == ("train", "image"):
         from .train import cli_main
         return cli_main(argv[2:])

@@ -38,6 +38,7 @@ from typing import Optional
 
 import numpy as np
 import torch
+from torch import nn
 from torch.nn import functional as F
 
 from model.core.state import half_state
@@ -64,6 +65,8 @@ class TrunkTrainConfig:
     freeze: int = 4                # blocks 0..freeze-1 (and the stem) keep ImageNet's weights
     flip: float = 0.5              # share of horizontally mirrored views (counts do not change)
     evals: int = 6                 # val evaluations over the run (the best one is kept)
+    centre_weight: float = 0.0     # weight of the part-centre map loss (0 = counts only)
+    init: str = ""                 # start from this trunk (trunk.pt or an image checkpoint)
     seed: int = 0
     threads: int = 2
 
@@ -95,24 +98,86 @@ def load_trunk(path) -> dict:
     return tr
 
 
+def count_labels_of(image_ckpt=None) -> list[str]:
+    """The count labels of an image checkpoint (default: the shipped one)."""
+    from model.articulation.checkpoint import read_checkpoint
+    from .model import SHIPPED
+    path = SHIPPED if image_ckpt is None else Path(image_ckpt)
+    if not Path(path).exists():
+        raise FileNotFoundError(f"no image checkpoint at {path}")
+    labels = list(read_checkpoint(path)["config"].get("count_labels") or [])
+    if not labels:
+        raise ValueError(f"{path} has no count labels")
+    return labels
+
+
 def trunk_keys(net, freeze: int, split: int = COUNT_SPLIT) -> list[str]:
     keep = tuple(f"_blocks.{i}." for i in range(freeze, split))
     return [k for k in net.state_dict() if k.startswith(keep)]
 
 
-class _Views:
-    """(data, renders) sets → view paths and count targets."""
+class CentreHead(nn.Module):
+    """(B, C, 7, 7) trunk map → (B, labels, 7, 7) non-negative part-centre counts per cell."""
 
-    def __init__(self, sets, labels, max_count):
+    def __init__(self, in_channels: int, labels: int, width: int = 128):
+        super().__init__()
+        self.body = nn.Sequential(nn.Conv2d(in_channels, width, 3, padding=1), nn.GELU(),
+                                  nn.Conv2d(width, labels, 1))
+        nn.init.constant_(self.body[-1].bias, -4.0)   # start near empty cells (softplus 0.018)
+
+    def forward(self, h: torch.Tensor) -> torch.Tensor:
+        return F.softplus(self.body(h.float()))
+
+
+def centre_loss(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+    """Squared error of the per-cell part counts, summed over labels and cells, mean over views."""
+    return (pred - target.float()).pow(2).sum((1, 2, 3)).mean()
+
+
+def initial_trunk(path, freeze: int) -> dict:
+    """The fine-tuned blocks of a trunk file or of an image checkpoint, to start from."""
+    p = Path(path)
+    if p.is_dir() or p.name == "trunk.pt":
+        tr = load_trunk(p)
+        if tr["freeze"] != freeze:
+            raise ValueError(f"{p} fine-tunes blocks {tr['freeze']}..14, not {freeze}..14")
+        return {k: v.float() for k, v in tr["state_dict"].items()}
+    if not p.exists():
+        raise FileNotFoundError(f"--init-trunk {p} does not exist")
+    ck = torch.load(p, map_location="cpu", weights_only=False)
+    state = (ck.get("image_encoder") or {}).get("trunk") if isinstance(ck, dict) else None
+    if not state:
+        raise ValueError(f"{p} is neither a trunk file nor an image checkpoint with a fine-tuned trunk")
+    first = min(int(k.split(".")[1]) for k in state)
+    if first != freeze:
+        raise ValueError(f"{p} fine-tunes blocks {first}..14, not {freeze}..14")
+    return {k: v.float() for k, v in state.items()}
+
+
+class _Views:
+    """(data, renders) sets → view paths, count targets and (optionally) part-centre maps."""
+
+    def __init__(self, sets, labels, max_count, centres: bool = False):
         from model.data import format as fmt
+        from .partmaps import load_partmaps
         from .renders import rendered_ids, view_paths
-        self.paths, ys, self.versions = [], [], []
+        self.paths, ys, ms, self.versions = [], [], [], []
         for root, rroot, splits in sets:
             ids = rendered_ids(rroot, [i for s in splits for i in fmt.split_ids(root, s)])
+            if centres:
+                pm = load_partmaps(rroot, labels)
+                version = fmt.load_manifest(root).get("data_version", "?")
+                if pm is None or pm.get("data_version") != version:
+                    raise ValueError(f"{rroot} has no part maps for these labels and data version; "
+                                     f"run `artformer data partmaps --data {root} --renders {rroot}`")
+                where = {i: k for k, i in enumerate(pm["ids"])}
+                ids = [i for i in ids if i in where]
+                ms.append(pm["maps"][[where[i] for i in ids]])
             self.paths += [[str(p) for p in view_paths(rroot, i)] for i in ids]
             ys.append(count_targets([fmt.load_record(root, i) for i in ids], labels, max_count))
             self.versions.append(fmt.load_manifest(root).get("data_version", "?"))
         self.Y = torch.cat(ys) if ys else torch.zeros(0, len(labels), dtype=torch.long)
+        self.M = torch.cat(ms) if ms else None      # (N, views, labels, 7, 7) uint8
         if self.paths and len({len(p) for p in self.paths}) != 1:
             raise ValueError("render sets differ in their number of views")
 
@@ -153,12 +218,12 @@ def train_trunk(data_root: str, render_root: str, out: str, *, extra: Optional[l
     torch.manual_seed(tc.seed)
     rng = np.random.default_rng(tc.seed)
     if labels is None:
-        from model.articulation.checkpoint import read_checkpoint
-        from .model import SHIPPED
-        labels = list(read_checkpoint(SHIPPED)["config"]["count_labels"])
+        labels = count_labels_of()
     t0 = time.time()
+    centres = tc.centre_weight > 0
     train = _Views([(data_root, render_root, ("train",))]
-                   + [(d, r, ("train", "val", "test")) for d, r in extra or []], labels, max_count)
+                   + [(d, r, ("train", "val", "test")) for d, r in extra or []], labels, max_count,
+                   centres=centres)
     if len(set(train.versions)) < len(train.versions):
         raise ValueError(f"training sets share a data version {train.versions}; extra objects need their own")
     val = _Views([(data_root, render_root, ("val",))], labels, max_count)
@@ -171,12 +236,24 @@ def train_trunk(data_root: str, render_root: str, out: str, *, extra: Optional[l
     net = enc.net
     net.eval()                       # BatchNorm statistics stay ImageNet's
     keys = trunk_keys(net, tc.freeze)
+    if tc.init:
+        start = initial_trunk(tc.init, tc.freeze)
+        if sorted(start) != sorted(keys):
+            raise ValueError(f"{tc.init}: its trunk blocks do not match blocks {tc.freeze}..14")
+        net.load_state_dict(start, strict=False)
+        log.info("trunk: starting from the blocks of %s", tc.init)
     params = [p for b in net._blocks[tc.freeze:COUNT_SPLIT] for p in b.parameters()]
     for p in params:
         p.requires_grad_(True)
     head = CountHead(CountHeadConfig(labels=list(labels), max_count=max_count))
+    heads = list(head.parameters())
+    centre_head = None
+    if centres:
+        centre_head = CentreHead(head.cfg.in_channels, len(labels))
+        centre_head.train()
+        heads += list(centre_head.parameters())
     opt = torch.optim.AdamW([{"params": params, "lr": tc.lr, "base": tc.lr},
-                             {"params": head.parameters(), "lr": tc.lr * tc.head_lr_mult,
+                             {"params": heads, "lr": tc.lr * tc.head_lr_mult,
                               "base": tc.lr * tc.head_lr_mult}], weight_decay=tc.weight_decay)
     every = max(1, tc.steps // max(1, tc.evals))
     best, history = None, []
@@ -192,14 +269,22 @@ def train_trunk(data_root: str, render_root: str, out: str, *, extra: Optional[l
         x = preprocess([train.paths[i][j] for i, j in zip(b, v)])
         flip = torch.from_numpy(rng.random(tc.batch_size) < tc.flip)
         x[flip] = x[flip].flip(-1)
-        loss = F.cross_entropy(head(_trunk_forward(enc, x, tc.freeze)).transpose(1, 2),
-                               train.Y[torch.from_numpy(b)])
+        h = _trunk_forward(enc, x, tc.freeze)
+        loss = F.cross_entropy(head(h).transpose(1, 2), train.Y[torch.from_numpy(b)])
+        if centre_head is not None:
+            target = train.M[torch.from_numpy(b), torch.from_numpy(v)]
+            target = torch.where(flip[:, None, None, None], target.flip(-1), target)
+            c_loss = centre_loss(centre_head(h), target)
+            loss_parts = (loss.item(), c_loss.item())
+            loss = loss + tc.centre_weight * c_loss
         opt.zero_grad(set_to_none=True)
         loss.backward()
         opt.step()
         if step % every == 0 or step == tc.steps:
             ev = _exact_counts(enc, head, val, tc.freeze)
             rec = {"step": step, "train_loss": round(loss.item(), 4), "val_exact": ev["exact"],
+                   **({"count_loss": round(loss_parts[0], 4), "centre_loss": round(loss_parts[1], 4)}
+                      if centre_head is not None else {}),
                    "val_per_label": dict(zip(labels, ev["per_label"])),
                    "minutes": round((time.time() - t_loop) / 60, 2)}
             history.append(rec)
@@ -207,13 +292,16 @@ def train_trunk(data_root: str, render_root: str, out: str, *, extra: Optional[l
                      rec["train_loss"], ev["exact"], rec["minutes"])
             if best is None or ev["exact"] > best[0]["val_exact"]:
                 sd = net.state_dict()
-                best = (rec, half_state({k: sd[k] for k in keys}), half_state(head.state_dict()))
-    rec, state, head_state = best
+                best = (rec, half_state({k: sd[k] for k in keys}), half_state(head.state_dict()),
+                        half_state(centre_head.state_dict()) if centre_head is not None else None)
+    rec, state, head_state, centre_state = best
     out_dir = Path(out)
     out_dir.mkdir(parents=True, exist_ok=True)
     trunk = {"kind": TRUNK_KIND, "freeze": tc.freeze, "split": COUNT_SPLIT, "tag": trunk_tag(state),
              "state_dict": state,
              "count_head": {"config": asdict(head.cfg), "state_dict": head_state},
+             **({"centre_head": {"labels": list(labels), "state_dict": centre_state}}
+                if centre_state is not None else {}),
              "train": {"command": command, "seed": tc.seed, "config": asdict(tc),
                        "data_versions": train.versions, "train_objects": len(train), "views": K,
                        "val_objects": len(val), "chosen": rec, "history": history,
@@ -250,6 +338,12 @@ def _parser():
     ap.add_argument("--freeze", type=int, default=d.freeze,
                     help=f"leading blocks kept at ImageNet weights (default {d.freeze})")
     ap.add_argument("--evals", type=int, default=d.evals)
+    ap.add_argument("--centre-weight", type=float, default=d.centre_weight,
+                    help="also regress the per-cell part-centre maps of `artformer data partmaps` "
+                         "with this weight (default 0: counts only)")
+    ap.add_argument("--init-trunk", default="",
+                    help="start from the blocks of this trunk.pt or image checkpoint "
+                         "(default: ImageNet's)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--threads", type=int, default=2)
     return ap
@@ -260,18 +354,19 @@ def cli_main(argv: list[str]) -> int:
     args = _parser().parse_args(argv)
     labels = None
     if args.image:
-        from model.articulation.checkpoint import read_checkpoint
-        if not Path(args.image).exists():
-            print(f"artformer train image-trunk: --image {args.image} does not exist", flush=True)
+        try:
+            labels = count_labels_of(args.image)
+        except (FileNotFoundError, ValueError) as e:
+            print(f"artformer train image-trunk: --image {e}", flush=True)
             return 2
-        labels = list(read_checkpoint(args.image)["config"].get("count_labels") or []) or None
     tc = TrunkTrainConfig(steps=args.steps, batch_size=args.batch_size, lr=args.lr,
-                          freeze=args.freeze, evals=args.evals, seed=args.seed, threads=args.threads)
+                          freeze=args.freeze, evals=args.evals, seed=args.seed, threads=args.threads,
+                          centre_weight=args.centre_weight, init=args.init_trunk)
     command = "artformer train image-trunk " + " ".join(shlex.quote(a) for a in argv)
     try:
         path = train_trunk(args.data, args.renders, args.out, extra=[tuple(x) for x in args.extra_train],
                            tc=tc, labels=labels, command=command)
-    except (ValueError, FileNotFoundError) as e:
+    except (ValueError, FileNotFoundError, TrunkError) as e:
         print(f"artformer train image-trunk: {e}", flush=True)
         return 2
     print(f"trunk: {path}")
