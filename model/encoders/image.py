@@ -175,8 +175,9 @@ def square_resize(rgb: np.ndarray, size: int = IMAGE_SIZE,
 
 
 def preprocess(images: Union[ImageLike, Sequence[ImageLike]], size: int = IMAGE_SIZE,
-               background: Sequence[float] = (1.0, 1.0, 1.0)) -> torch.Tensor:
-    """One image or a list → normalised batch (B, 3, size, size) float32."""
+               background: Sequence[float] = (1.0, 1.0, 1.0), frame: bool = False) -> torch.Tensor:
+    """One image or a list → normalised batch (B, 3, size, size) float32. ``frame``: crop a
+    picture with a plain background around its object first (``framing.frame_object``)."""
     if isinstance(images, (list, tuple)):
         items = list(images)
         if not items:
@@ -185,7 +186,11 @@ def preprocess(images: Union[ImageLike, Sequence[ImageLike]], size: int = IMAGE_
         items = [images]
     out = []
     for im in items:
-        rgb = square_resize(to_rgb_float(im, background), size, background)   # (S, S, 3)
+        rgb = to_rgb_float(im, background)
+        if frame:
+            from .framing import frame_object
+            rgb = frame_object(rgb)
+        rgb = square_resize(rgb, size, background)                              # (S, S, 3)
         out.append(torch.from_numpy((rgb * 255.0 - 127.0) / 128.0).permute(2, 0, 1))
     return torch.stack(out)                                                   # (B, 3, S, S)
 

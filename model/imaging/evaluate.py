@@ -75,19 +75,41 @@ def visibility_breakdown(rows: list[dict], visible_px: int = VISIBLE_PX) -> dict
     return out
 
 
+def farther_view(path, share: float) -> np.ndarray:
+    """A render shown at ``share`` of a larger picture's side, the rest its border colour (the
+    median of its outermost pixels): the same object seen from further away by a camera with
+    more pixels, as a photo would be. (H/share, W/share, 3) float."""
+    from model.encoders.image import to_rgb_float
+    if not 0 < share <= 1:
+        raise ValueError(f"share must be in (0, 1], got {share}")
+    rgb = to_rgb_float(path)
+    h, w = rgb.shape[:2]
+    ring = np.concatenate([rgb[0], rgb[-1], rgb[:, 0], rgb[:, -1]])
+    H, W = int(round(h / share)), int(round(w / share))
+    out = np.empty((H, W, 3), np.float32)
+    out[:] = np.median(ring, axis=0)
+    y0, x0 = (H - h) // 2, (W - w) // 2
+    out[y0:y0 + h, x0:x0 + w] = rgb
+    return out
+
+
 def image_alignment_report(ckpt: str, data_root: str, render_root: str, *, split: str = "test",
                            views: Optional[list[int]] = None, limit: int = 0, seed: int = 0,
                            temperature: float = 1.0, batch: int = 32, progress: bool = True,
                            follow_plan: bool = False, count_plan: bool = True,
                            oracle_plan: bool = False, visibility: bool = False,
-                           visible_px: int = VISIBLE_PX, max_nodes: int = 32, max_depth: int = 4,
+                           visible_px: int = VISIBLE_PX, frame: bool = False,
+                           farther: float = 1.0, max_nodes: int = 32, max_depth: int = 4,
                            max_children: int = 16) -> dict:
     """``count_plan``: decode with END decisions held to the checkpoint's count head (if it
     has one); ``follow_plan``: otherwise to the transformer's START plan head;
     ``oracle_plan`` (a diagnostic): to the object's true part counts.
     ``visibility``: also measure how much of every part each render shows (a part-id render
     with the same camera) and report structure separately for the renders whose every part
-    covers at least ``visible_px`` pixels and for the rest (``by_visibility``)."""
+    covers at least ``visible_px`` pixels and for the rest (``by_visibility``).
+    ``farther`` < 1: every render is shown at that share of a larger picture (``farther_view``,
+    a photo from further away); ``frame``: pictures are cropped around their object first,
+    as the product does (model.encoders.framing)."""
     import torch
 
     from model.articulation.evaluate import compare, record_structure
@@ -103,7 +125,8 @@ def image_alignment_report(ckpt: str, data_root: str, render_root: str, *, split
         rng = tqdm(rng, desc=f"decode {split} images", unit="batch")
     for s in rng:
         chunk = jobs[s:s + batch]
-        tok, mask, plan = im.condition([str(p) for *_, p in chunk])
+        images = [str(p) if farther == 1.0 else farther_view(p, farther) for *_, p in chunk]
+        tok, mask, plan = im.condition(images, frame)
         if oracle_plan:
             from .counts import count_targets
             plan = count_targets([rec for rec, *_ in chunk], im.am.cfg.count_labels,
@@ -127,7 +150,8 @@ def image_alignment_report(ckpt: str, data_root: str, render_root: str, *, split
     cats = sorted({r["truth"]["category"] for r in rows})
     return {"checkpoint": str(ckpt), "data": str(data_root), "renders": str(render_root),
             "split": split, "objects": len(ids), "images": len(rows), "seed": seed,
-            "temperature": temperature, "follow_plan": follow_plan,
+            "temperature": temperature, "follow_plan": follow_plan, "frame": frame,
+            "farther": farther,
             "count_plan": "oracle" if oracle_plan else bool(count_plan and im.counter is not None),
             "category": share(rows, "category"), "alignment": share(rows),
             "counts": share(rows, "counts"), "joint_types": share(rows, "joint_types"),

@@ -45,11 +45,14 @@ class ImageArticulationModel:
             self.meta["count_head"] = (ckpt["count_head"].get("train") or {}).get("command")
 
     @torch.inference_mode()
-    def condition(self, images: Union[ImageLike, list]
+    def condition(self, images: Union[ImageLike, list], frame: bool = False
                   ) -> tuple[torch.Tensor, torch.Tensor, Optional[torch.Tensor]]:
         """One image or a list → tokens (B, 49, D), mask (B, 49) bool and the count head's
-        per-label counts (B, len(count_labels)), or None without a count head."""
-        x = preprocess(images, self.encoder.config.image_size, self.encoder.config.background)
+        per-label counts (B, len(count_labels)), or None without a count head. ``frame``:
+        crop pictures with a plain background around their object first (as the renders
+        frame it; model.encoders.framing)."""
+        x = preprocess(images, self.encoder.config.image_size, self.encoder.config.background,
+                       frame=frame)
         chunks = [x[s:s + ENCODE_BATCH] for s in range(0, len(x), ENCODE_BATCH)]
         if self.counter is None:
             tokens, plan = torch.cat([self.encoder(c) for c in chunks]), None     # (B, 49, D)
@@ -59,17 +62,18 @@ class ImageArticulationModel:
             plan = self.counter.predict(torch.cat([h for _, h in outs]))
         return tokens, torch.ones(tokens.shape[:2], dtype=torch.bool), plan
 
-    def encode(self, images: Union[ImageLike, list]) -> tuple[torch.Tensor, torch.Tensor]:
+    def encode(self, images: Union[ImageLike, list], frame: bool = False
+               ) -> tuple[torch.Tensor, torch.Tensor]:
         """One image or a list → tokens (B, 49, D), mask (B, 49) bool."""
-        tokens, mask, _ = self.condition(images)
+        tokens, mask, _ = self.condition(images, frame)
         return tokens, mask
 
     @torch.inference_mode()
     def decode_image(self, image: ImageLike, *, samples: int = 1, seed: int = 0,
-                     count_plan: bool = True, **kwargs):
+                     count_plan: bool = True, frame: bool = False, **kwargs):
         """One image → ``samples`` decoded trees (kwargs go to ArticulationModel.decode);
         with a count head (and ``count_plan``) END decisions follow its counts."""
-        tokens, mask, plan = self.condition(image)
+        tokens, mask, plan = self.condition(image, frame)
         if plan is not None and count_plan:
             kwargs["plan"] = plan.expand(samples, -1)
         return self.am.decode(tokens.expand(samples, -1, -1), mask.expand(samples, -1),

@@ -532,6 +532,13 @@ def _parser():
                          "report structure by visibility (by_visibility)")
     ap.add_argument("--visible-px", type=int, default=16,
                     help="--visibility: pixels a part needs to count as visible (default 16)")
+    ap.add_argument("--frame", action="store_true",
+                    help="--eval: crop each picture around its object first, as the product "
+                         "does for photos (model.encoders.framing)")
+    ap.add_argument("--farther", type=float, default=1.0, metavar="S",
+                    help="--eval: show each render at S (< 1) of the picture's side, in the "
+                         "middle of a larger picture of its background colour: a photo taken "
+                         "from further away (default 1: the render as it is)")
     ap.add_argument("--json", metavar="PATH")
     ap.add_argument("--no-progress", action="store_true")
     return ap
@@ -558,7 +565,8 @@ def cli_main(argv: list[str]) -> int:
                                      temperature=args.temperature, follow_plan=args.follow_plan,
                                      count_plan=not args.no_count_plan,
                                      oracle_plan=args.oracle_plan, visibility=args.visibility,
-                                     visible_px=args.visible_px, progress=not args.no_progress)
+                                     visible_px=args.visible_px, frame=args.frame,
+                                     farther=args.farther, progress=not args.no_progress)
         print(json.dumps({k: v for k, v in rep.items() if k != "rows"}, indent=1))
         if args.json:
             Path(args.json).parent.mkdir(parents=True, exist_ok=True)

@@ -19,7 +19,14 @@ writes ``OUT/trunk.pt``::
     {"kind": "image_trunk", "freeze": int, "split": 15, "tag": str,
      "state_dict": {EfficientNet-Lite0 keys of blocks freeze..14: fp16},
      "count_head": {"config": ..., "state_dict": ...},
+     "centre_head": {"labels", "state_dict"}      (with --centre-weight only),
      "train": {"command", "seed", "config", "data_versions", "history", "chosen", ...}}
+
+``--centre-weight W`` adds a second target: a small head (``CentreHead``) on the same map
+regresses, per label and cell, the parts centred there (``artformer data partmaps``), so
+the blocks are told where each counted part is, not only how many there are (mirrored views
+get mirrored maps). ``--init-trunk`` starts the blocks from a trunk file or from the trunk
+of an image checkpoint instead of ImageNet's (the heads start fresh).
 
 The weights stored are the ones of the best val evaluation (exact counts of every label on
 the v1 val renders, all views), rounded to fp16 before anything reads them, so feature

@@ -31,6 +31,9 @@ class GenerationConfig:
                                        # Chosen on val: it helps text (0.8125 -> 0.8425), not
                                        # images (START head 0.35 -> 0.335; count head
                                        # 0.425 -> 0.4175), so images decode freely
+    frame_images: bool = True          # crop a photo with a plain background around its
+                                       # object, as the training renders frame it
+                                       # (model.encoders.framing; docs/imaging.md)
     geometry: str = "generate"         # generate | retrieve
     mesh_format: str = "obj"           # obj | stl | glb
     collision: str = "auto"            # auto | cells | vhacd | hull | none (model.export.collision)

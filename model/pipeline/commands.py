@@ -23,6 +23,9 @@ def _model_args(p: argparse.ArgumentParser) -> None:
                    default=("text",),
                    help="decode END from the END head alone (the paper's decoding), without "
                         "holding it to the START plan head")
+    p.add_argument("--no-frame", dest="frame_images", action="store_false",
+                   help="read an --image as it is, without cropping a plain background around "
+                        "the object first")
     p.add_argument("--geometry", choices=("generate", "retrieve"), default="generate",
                    help="diffuse new part shapes, or retrieve the nearest training part")
     p.add_argument("--format", dest="mesh_format", choices=("obj", "stl", "glb"), default="obj")
@@ -43,7 +46,8 @@ def _config(a):
                             guidance=a.guidance, geometry=a.geometry, mesh_format=a.mesh_format,
                             collision=a.collision, threads=a.threads,
                             structure_temperature=a.structure_temperature,
-                            follow_plan=a.follow_plan)
+                            follow_plan=a.follow_plan,
+                            frame_images=getattr(a, "frame_images", True))
 
 
 def _report(outs, results, as_json: bool) -> None:
