@@ -46,6 +46,8 @@ PARAMS: tuple[ParamSpec, ...] = (
               "false saves its rendering time (the example backend never writes one)"),
     ParamSpec("mesh_uri", "file", "mesh references in the URDF: 'file' (absolute file:// "
               "paths) or a 'package://<pkg>/<path>' prefix that replaces the output folder"),
+    ParamSpec("frame_images", True, "crop an image request with a plain background around its "
+              "object first, as the training renders frame it", read_only=True),
     ParamSpec("device", "cpu", "torch device: cpu, cuda or cuda:N", read_only=True),
     ParamSpec("threads", 2, "torch CPU threads used by generation",
               read_only=True, int_range=(1, 64)),
@@ -113,6 +115,7 @@ class NodeSettings:
     mesh_format: str = "obj"
     preview: bool = True
     mesh_uri: str = "file"
+    frame_images: bool = True
     device: str = "cpu"
     threads: int = 2
     seed: int = -1
@@ -144,4 +147,4 @@ class NodeSettings:
         return GenerationConfig(checkpoint=self.checkpoint or None, resolution=self.resolution,
                                 steps=self.steps, guidance=self.guidance,
                                 mesh_format=self.mesh_format, device=self.device,
-                                threads=self.threads)
+                                threads=self.threads, frame_images=self.frame_images)
