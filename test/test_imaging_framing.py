@@ -37,6 +37,17 @@ def test_an_object_on_a_plain_background_is_cropped_to_the_training_fill():
     assert out.shape == (side, side, 3) and find_object(out).box[2] - find_object(out).box[0] == 60
 
 
+def test_a_large_photo_is_searched_on_a_strided_copy():
+    rgb = np.empty((1500, 2000, 3), np.float32)
+    rgb[:] = (0.2, 0.25, 0.3)
+    rgb[700:1000, 1200:1400] = (0.9, 0.8, 0.1)        # 300 x 200 object
+    out = frame_object(rgb)
+    side = out.shape[0]
+    assert out.shape == (side, side, 3) and abs(side - 300 / FRAME_FILL) <= 8
+    y0, x0, y1, x1 = find_object(out).box
+    assert abs((y1 - y0) - 300) <= 4 and abs((x1 - x0) - 200) <= 4
+
+
 def test_pictures_without_a_plain_background_or_object_are_left_alone():
     rng = np.random.default_rng(0)
     cluttered = rng.random((200, 260, 3)).astype(np.float32)
