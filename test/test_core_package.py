@@ -60,3 +60,11 @@ def test_half_state_stores_floats_as_fp16_copies_and_keeps_other_tensors():
     h16.add_(1.0)
     steps.add_(1)
     assert out["w"].tolist() == [1.0, 2.5] and out["h"].tolist() == [0.5] and out["n"].tolist() == [7]
+
+
+def test_map_jobs_gives_every_result_in_one_process_or_several():
+    from model.core.runtime import map_jobs
+    jobs = [-5, 3, -1, 4, -2]
+    assert list(map_jobs(abs, jobs, workers=1)) == [5, 3, 1, 4, 2]        # in order
+    assert sorted(map_jobs(abs, jobs, workers=2, chunksize=1)) == [1, 2, 3, 4, 5]
+    assert list(map_jobs(abs, [], workers=2)) == []

@@ -93,3 +93,14 @@ def settle_after_load() -> None:
     import gc
     gc.collect()
     gc.freeze()
+
+
+def map_jobs(fn, jobs: list, workers: int = 1, chunksize: int = 4) -> Iterator:
+    """``fn`` over ``jobs``: results in completion order from ``workers`` forked processes, or in
+    order in this process when one worker (or one job) is enough."""
+    if workers > 1 and len(jobs) > 1:
+        import multiprocessing as mp
+        with mp.get_context("fork").Pool(workers) as pool:
+            yield from pool.imap_unordered(fn, jobs, chunksize=chunksize)
+    else:
+        yield from map(fn, jobs)

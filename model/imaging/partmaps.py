@@ -127,26 +127,14 @@ def build_partmaps(data_root: str, render_root: str, labels: list[str], *, worke
     if progress and jobs:
         from tqdm import tqdm
         bar = tqdm(total=len(jobs), desc="part maps", unit="obj")
-    if workers > 1 and len(jobs) > 1:
-        import multiprocessing as mp
-        with mp.get_context("fork").Pool(workers) as pool:
-            results = pool.imap_unordered(_one, jobs, chunksize=4)
-            for oid, m, err in results:
-                if err:
-                    failed[oid] = err
-                else:
-                    have[oid] = torch.from_numpy(m)
-                if bar:
-                    bar.update(1)
-    else:
-        for job in jobs:
-            oid, m, err = _one(job)
-            if err:
-                failed[oid] = err
-            else:
-                have[oid] = torch.from_numpy(m)
-            if bar:
-                bar.update(1)
+    from model.core.runtime import map_jobs
+    for oid, m, err in map_jobs(_one, jobs, workers):
+        if err:
+            failed[oid] = err
+        else:
+            have[oid] = torch.from_numpy(m)
+        if bar:
+            bar.update(1)
     if bar:
         bar.close()
     for oid, err in list(failed.items())[:5]:

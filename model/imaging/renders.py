@@ -136,21 +136,12 @@ def render_dataset(data_root: os.PathLike, out_root: os.PathLike, views: int = 8
     if progress:
         from tqdm import tqdm
         bar = tqdm(total=len(jobs), desc="render", unit="obj")
-    if workers > 1 and len(jobs) > 1:
-        import multiprocessing as mp
-        with mp.get_context("fork").Pool(workers) as pool:
-            for oid, err in pool.imap_unordered(_render_one, jobs, chunksize=4):
-                if err:
-                    failed[oid] = err
-                if bar:
-                    bar.update(1)
-    else:
-        for job in jobs:
-            oid, err = _render_one(job)
-            if err:
-                failed[oid] = err
-            if bar:
-                bar.update(1)
+    from model.core.runtime import map_jobs
+    for oid, err in map_jobs(_render_one, jobs, workers):
+        if err:
+            failed[oid] = err
+        if bar:
+            bar.update(1)
     if bar:
         bar.close()
     for oid, err in list(failed.items())[:5]:
