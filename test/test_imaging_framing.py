@@ -92,3 +92,26 @@ def test_framing_a_distant_render_brings_back_the_renders_tokens(tmp_path):
         return float(torch.nn.functional.cosine_similarity(a.flatten(), b.flatten(), dim=0))
     assert cos(framed, ref) > cos(plain, ref) + 0.1
     assert torch.equal(preprocess(str(path)), preprocess(str(path), frame=False))
+
+
+@pytest.mark.parametrize("frame", [True, False])
+def test_the_generator_and_the_node_settings_pass_the_framing_choice_on(frame):
+    from artformer_ros.params import NodeSettings
+    from model.encoders.image import ImageInputError
+    from model.pipeline.api import GenerationConfig, GenerationError
+    from model.pipeline.generator import Generator
+
+    assert GenerationConfig().frame_images is True
+    cfg = NodeSettings.from_values({"frame_images": frame}).generation_config()
+    assert cfg.frame_images is frame
+    seen = []
+
+    class _Image:   # stops the request right after the condition, recording how it was asked
+        def condition(self, image, frame=False):
+            seen.append(frame)
+            raise ImageInputError("stop here")
+
+    gen = Generator(cfg, articulation=None, shape=None, image_model=_Image())
+    with pytest.raises(GenerationError, match="bad image: stop here"):
+        gen.generate(image=np.zeros((8, 8, 3), np.uint8))
+    assert seen == [frame]

@@ -151,7 +151,10 @@ def initial_trunk(path, freeze: int) -> dict:
         return {k: v.float() for k, v in tr["state_dict"].items()}
     if not p.exists():
         raise FileNotFoundError(f"--init-trunk {p} does not exist")
-    ck = torch.load(p, map_location="cpu", weights_only=False)
+    try:
+        ck = torch.load(p, map_location="cpu", weights_only=False)
+    except Exception as e:  # noqa: BLE001 - any damage is reported the same way
+        raise ValueError(f"--init-trunk {p} cannot be read ({e})") from e
     state = (ck.get("image_encoder") or {}).get("trunk") if isinstance(ck, dict) else None
     if not state:
         raise ValueError(f"{p} is neither a trunk file nor an image checkpoint with a fine-tuned trunk")
