@@ -115,3 +115,9 @@ def test_the_generator_and_the_node_settings_pass_the_framing_choice_on(frame):
     with pytest.raises(GenerationError, match="bad image: stop here"):
         gen.generate(image=np.zeros((8, 8, 3), np.uint8))
     assert seen == [frame]
+
+
+def test_eval_refuses_a_farther_share_outside_0_1():
+    from model.imaging.train import cli_main
+    for bad in ("0", "1.5", "-0.3"):
+        assert cli_main(["--eval", "model/weights/image_small.pt", "--farther", bad]) == 2

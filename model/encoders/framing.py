@@ -36,12 +36,17 @@ class Framing:
     reason: str              # "object", "cluttered border", "no object"
 
 
+def border_ring(rgb: np.ndarray, width: int = 1) -> np.ndarray:
+    """The pixels of the outer ``width`` rows and columns of ``rgb`` → (n, 3)."""
+    b = int(width)
+    return np.concatenate([rgb[:b].reshape(-1, 3), rgb[-b:].reshape(-1, 3),
+                           rgb[:, :b].reshape(-1, 3), rgb[:, -b:].reshape(-1, 3)])
+
+
 def find_object(rgb: np.ndarray) -> Framing:
     """(H, W, 3) float in [0, 1] → the box of what differs from a plain border colour."""
     h, w = rgb.shape[:2]
-    b = max(1, int(round(BORDER * min(h, w))))
-    ring = np.concatenate([rgb[:b].reshape(-1, 3), rgb[-b:].reshape(-1, 3),
-                           rgb[:, :b].reshape(-1, 3), rgb[:, -b:].reshape(-1, 3)])
+    ring = border_ring(rgb, max(1, int(round(BORDER * min(h, w)))))
     bg = np.median(ring, axis=0).astype(np.float32)
     if np.percentile(np.abs(ring - bg).max(-1), 90) > BORDER_SPREAD:
         return Framing(None, bg, "cluttered border")

@@ -79,12 +79,13 @@ def farther_view(path, share: float) -> np.ndarray:
     """A render shown at ``share`` of a larger picture's side, the rest its border colour (the
     median of its outermost pixels): the same object seen from further away by a camera with
     more pixels, as a photo would be. (H/share, W/share, 3) float."""
+    from model.encoders.framing import border_ring
     from model.encoders.image import to_rgb_float
     if not 0 < share <= 1:
         raise ValueError(f"share must be in (0, 1], got {share}")
     rgb = to_rgb_float(path)
     h, w = rgb.shape[:2]
-    ring = np.concatenate([rgb[0], rgb[-1], rgb[:, 0], rgb[:, -1]])
+    ring = border_ring(rgb, 1)
     H, W = int(round(h / share)), int(round(w / share))
     out = np.empty((H, W, 3), np.float32)
     out[:] = np.median(ring, axis=0)

@@ -33,10 +33,14 @@ from typing import Optional
 import numpy as np
 import torch
 
+from model.encoders.image import GRID as TOKEN_GRID
+
+from .render import RENDER_SIZE
+
 log = logging.getLogger(__name__)
 
 PARTMAP_FORMAT = 1
-GRID = 7
+GRID = TOKEN_GRID[0]      # the encoder's 7 x 7 token grid
 
 
 def centre_map(ids: np.ndarray, part_labels: list[str], labels: list[str],
@@ -69,16 +73,12 @@ def object_maps(data_root: str, render_root: str, obj_id: str, labels: list[str]
                 grid: int = GRID) -> np.ndarray:
     """Every rendered view of one object → (views, labels, grid, grid) uint8."""
     from model.data import format as fmt
-    from model.export.render import render_part_ids
-    from .render import RENDER_SIZE, render_options
+    from .render import part_ids
     from .renders import object_from_record, view_specs
     obj = object_from_record(data_root, fmt.load_record(data_root, obj_id))
     part_labels = [p.label for p in obj.parts]
-    maps = []
-    for view in view_specs(render_root, obj_id):
-        ids = render_part_ids(obj, float(view.openness), RENDER_SIZE, options=render_options(view))
-        maps.append(centre_map(ids, part_labels, labels, grid))
-    return np.stack(maps)
+    return np.stack([centre_map(part_ids(obj, view), part_labels, labels, grid)
+                     for view in view_specs(render_root, obj_id)])
 
 
 def _one(job):
@@ -144,7 +144,7 @@ def build_partmaps(data_root: str, render_root: str, labels: list[str], *, worke
         raise ValueError(f"{render_root}: no part maps could be made ({len(failed)} failures)")
     if len({tuple(have[i].shape) for i in keep}) != 1:
         raise ValueError(f"{render_root}: objects have different numbers of views")
-    pm = {"format": PARTMAP_FORMAT, "grid": grid, "size": 224, "labels": list(labels),
+    pm = {"format": PARTMAP_FORMAT, "grid": grid, "size": RENDER_SIZE, "labels": list(labels),
           "data_version": version, "ids": keep, "maps": torch.stack([have[i] for i in keep])}
     if jobs:
         buf = io.BytesIO()

@@ -102,9 +102,15 @@ def render_view(obj: ArticulatedObject, view: ViewSpec, size: int = RENDER_SIZE)
                         seed=int(view.colour_seed))[0]
 
 
-def part_pixels(obj: ArticulatedObject, view: ViewSpec, size: int = RENDER_SIZE) -> np.ndarray:
-    """Visible pixels of every part of ``obj`` in ``view`` at ``size`` (one z-buffer sample
-    per pixel, the camera of ``render_view``): (len(obj.parts),) int; 0 = hidden."""
+def part_ids(obj: ArticulatedObject, view: ViewSpec, size: int = RENDER_SIZE) -> np.ndarray:
+    """The part seen at every pixel of ``view`` (one z-buffer sample per pixel, the camera of
+    ``render_view``): (size, size) int, -1 = background."""
     from model.export.render import render_part_ids
-    ids = render_part_ids(obj, float(view.openness), size, options=render_options(view))
+    return render_part_ids(obj, float(view.openness), size, options=render_options(view))
+
+
+def part_pixels(obj: ArticulatedObject, view: ViewSpec, size: int = RENDER_SIZE) -> np.ndarray:
+    """Visible pixels of every part of ``obj`` in ``view`` at ``size``:
+    (len(obj.parts),) int; 0 = hidden."""
+    ids = part_ids(obj, view, size)
     return np.bincount(ids[ids >= 0].ravel(), minlength=len(obj.parts))[:len(obj.parts)]

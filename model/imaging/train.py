@@ -559,6 +559,9 @@ def cli_main(argv: list[str]) -> int:
         return 0
     if args.eval:
         from .evaluate import image_alignment_report
+        if not 0 < args.farther <= 1:
+            print(f"artformer train image: --farther must be in (0, 1], got {args.farther}", flush=True)
+            return 2
         views = None if args.eval_views == "all" else [int(v) for v in args.eval_views.split(",")]
         rep = image_alignment_report(args.eval, args.data, args.renders, split=args.split,
                                      views=views, limit=args.limit, seed=args.eval_seed,

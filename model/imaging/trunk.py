@@ -174,9 +174,9 @@ class _Views:
         self.paths, ys, ms, self.versions = [], [], [], []
         for root, rroot, splits in sets:
             ids = rendered_ids(rroot, [i for s in splits for i in fmt.split_ids(root, s)])
+            version = fmt.load_manifest(root).get("data_version", "?")
             if centres:
                 pm = load_partmaps(rroot, labels)
-                version = fmt.load_manifest(root).get("data_version", "?")
                 if pm is None or pm.get("data_version") != version:
                     raise ValueError(f"{rroot} has no part maps for these labels and data version; "
                                      f"run `artformer data partmaps --data {root} --renders {rroot}`")
@@ -185,7 +185,7 @@ class _Views:
                 ms.append(pm["maps"][[where[i] for i in ids]])
             self.paths += [[str(p) for p in view_paths(rroot, i)] for i in ids]
             ys.append(count_targets([fmt.load_record(root, i) for i in ids], labels, max_count))
-            self.versions.append(fmt.load_manifest(root).get("data_version", "?"))
+            self.versions.append(version)
         self.Y = torch.cat(ys) if ys else torch.zeros(0, len(labels), dtype=torch.long)
         self.M = torch.cat(ms) if ms else None      # (N, views, labels, 7, 7) uint8
         if self.paths and len({len(p) for p in self.paths}) != 1:
