@@ -464,7 +464,7 @@ def test_partmaps_of_a_render_set_and_a_trunk_trained_on_them(tiny_set, tmp_path
     from model.imaging.partmaps import build_partmaps, load_partmaps, partmap_path
     from model.imaging.render import part_pixels
     from model.imaging.renders import object_from_record, view_specs
-    from model.imaging.trunk import cli_main, initial_trunk, load_trunk
+    from model.imaging.trunk import cli_main, initial_count_head, initial_trunk, load_trunk
     from model.data import format as fmt
 
     image_ckpt, _, _ = _run(tiny_set, 0, 2, out=tmp_path / "img")
@@ -508,5 +508,14 @@ def test_partmaps_of_a_render_set_and_a_trunk_trained_on_them(tiny_set, tmp_path
         initial_trunk(tmp_path / "garbage.pt", 12)
     assert cli_main(trunk_args + ["--out", str(tmp_path / "t2"), "--steps", "2", "--evals", "1",
                                   "--init-trunk", str(tmp_path / "t1" / "trunk.pt")]) == 0
-    assert load_trunk(tmp_path / "t2")["train"]["config"]["init"].endswith("trunk.pt")
+    t2 = load_trunk(tmp_path / "t2")
+    assert t2["train"]["config"]["init"].endswith("trunk.pt") and t2["train"]["head_continued"]
+    # the count head continues from a trunk file with the same labels, never from elsewhere
+    from model.imaging.counts import CountHeadConfig
+    cfg = CountHeadConfig(**tr["count_head"]["config"])
+    head = initial_count_head(tmp_path / "t1" / "trunk.pt", cfg)
+    assert all(torch.equal(head[k], v.float()) for k, v in tr["count_head"]["state_dict"].items())
+    assert initial_count_head(tmp_path / "t1" / "trunk.pt",
+                              CountHeadConfig(**{**tr["count_head"]["config"], "max_count": 3})) is None
+    assert initial_count_head(image_ckpt, cfg) is None
     assert cli_main(trunk_args + ["--out", str(tmp_path / "t3"), "--init-trunk", str(image_ckpt)]) == 2

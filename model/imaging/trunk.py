@@ -26,7 +26,9 @@ writes ``OUT/trunk.pt``::
 regresses, per label and cell, the parts centred there (``artformer data partmaps``), so
 the blocks are told where each counted part is, not only how many there are (mirrored views
 get mirrored maps). ``--init-trunk`` starts the blocks from a trunk file or from the trunk
-of an image checkpoint instead of ImageNet's (the heads start fresh).
+of an image checkpoint instead of ImageNet's; from a trunk file whose count head has the
+same labels and classes, the count head continues too (an image checkpoint stores no count
+head for the trunk, so there it starts fresh, as does the centre head always).
 
 The weights stored are the ones of the best val evaluation (exact counts of every label on
 the v1 val renders, all views), rounded to fp16 before anything reads them, so feature
@@ -164,6 +166,17 @@ def initial_trunk(path, freeze: int) -> dict:
     return {k: v.float() for k, v in state.items()}
 
 
+def initial_count_head(path, cfg) -> Optional[dict]:
+    """The count head of a trunk file when it matches ``cfg`` (labels, classes, channels), else None."""
+    p = Path(path)
+    if not (p.is_dir() or p.name == "trunk.pt"):
+        return None
+    head = load_trunk(p).get("count_head") or {}
+    if head.get("config") != asdict(cfg) or not head.get("state_dict"):
+        return None
+    return {k: v.float() for k, v in head["state_dict"].items()}
+
+
 class _Views:
     """(data, renders) sets → view paths, count targets and (optionally) part-centre maps."""
 
@@ -256,6 +269,10 @@ def train_trunk(data_root: str, render_root: str, out: str, *, extra: Optional[l
     for p in params:
         p.requires_grad_(True)
     head = CountHead(CountHeadConfig(labels=list(labels), max_count=max_count))
+    head_start = initial_count_head(tc.init, head.cfg) if tc.init else None
+    if head_start is not None:
+        head.load_state_dict(head_start)
+        log.info("trunk: the count head continues from %s", tc.init)
     heads = list(head.parameters())
     centre_head = None
     if centres:
@@ -314,7 +331,8 @@ def train_trunk(data_root: str, render_root: str, out: str, *, extra: Optional[l
                 if centre_state is not None else {}),
              "train": {"command": command, "seed": tc.seed, "config": asdict(tc),
                        "data_versions": train.versions, "train_objects": len(train), "views": K,
-                       "val_objects": len(val), "chosen": rec, "history": history,
+                       "val_objects": len(val), "head_continued": head_start is not None,
+                       "chosen": rec, "history": history,
                        "minutes": round((time.time() - t0) / 60, 2)}}
     buf = io.BytesIO()
     torch.save(trunk, buf)
