@@ -97,28 +97,6 @@ def test_determinism_under_a_seed_and_variety_across_seeds():
     assert np.array_equal(g[0].parents, h[0].parents), "temperature 0 is greedy"
 
 
-def test_grouped_conditions_vote_on_one_tree():
-    """decode(group=K): K condition rows per object, one tree from their averaged outputs."""
-    am = _random_model(end_bias=0.5, seed=1)
-    tok, mask = _cond(S=2)
-    a, b = (am.decode(tok[i:i + 1], mask[i:i + 1], seed=3, temperature=0.0, max_nodes=12)[0]
-            for i in range(2))
-    same = am.decode(tok[:1].expand(3, -1, -1), mask[:1].expand(3, -1), seed=3, temperature=0.0,
-                     max_nodes=12, group=3)
-    assert len(same) == 1 and np.array_equal(same[0].parents, a.parents)
-    assert np.allclose(same[0].tokens, a.tokens, atol=1e-5) and same[0].labels == a.labels
-    # objects [a, b] and [b, b]: two trees; the root (read from START before any part exists)
-    # is the mean of the two views' roots, and a run of identical views gives that view's tree
-    two = am.decode(torch.cat([tok, tok[1:], tok[1:]]), mask.new_ones(4, 4), seed=3,
-                    temperature=0.0, max_nodes=12, group=2)
-    assert len(two) == 2
-    assert np.allclose(two[0].tokens[0], (a.tokens[0] + b.tokens[0]) / 2, atol=1e-5)
-    assert not np.allclose(a.tokens[0], b.tokens[0], atol=1e-3)
-    assert np.array_equal(two[1].parents, b.parents) and np.allclose(two[1].tokens, b.tokens, atol=1e-5)
-    with pytest.raises(ValueError, match="group must divide"):
-        am.decode(tok, mask, group=3)
-
-
 def _planning_model(end_bias: float, plan_count: int) -> ArticulationModel:
     """A random model with a plan head fixed to say ``plan_count`` parts of every label."""
     from dataclasses import replace

@@ -144,8 +144,8 @@ class ArticulationModel:
                max_nodes: int = 32, max_depth: int = 4, max_children: int = 16,
                temperature: float = 1.0, modality: str = "text",
                keep: Union[ArticulatedObject, DecodedTree, None] = None,
-               follow_plan: bool = False, plan=None, group: int = 1) -> list[DecodedTree]:
-        """cond_tokens (S, L, D_cond), cond_mask (S, L) -> S // group decoded trees.
+               follow_plan: bool = False, plan=None) -> list[DecodedTree]:
+        """cond_tokens (S, L, D_cond), cond_mask (S, L) -> S decoded trees.
 
         ``temperature`` scales the END logits and the joint-type logits before sampling
         (0 = greedy: END when p < 0.5, most likely joint type). ``keep`` (editing) starts
@@ -159,21 +159,12 @@ class ArticulationModel:
         would stop while its predicted child's label is still short of the plan adds it.
         Needs a checkpoint trained with the plan head; ignored otherwise.
 
-        ``plan`` (S // group, len(count_labels)) integer counts from elsewhere (the image count
-        head, model.imaging.counts) replaces the START plan head's and is always followed.
-
-        ``group`` > 1 (test-time augmentation): every run of ``group`` consecutive condition
-        rows describes one object (e.g. the same picture at a few scales). One tree is grown
-        per run: every round the network reads that tree once per condition and its outputs
-        (END, joint-type and plan logits, token, c_s, geometry) are averaged before the
-        decisions, so the views vote on every part.
+        ``plan`` (S, len(count_labels)) integer counts from elsewhere (the image count head,
+        model.imaging.counts) replaces the START plan head's and is always followed.
         """
         if max_nodes < 1 or max_depth < 0 or max_children < 0:
             raise ValueError("max_nodes must be >= 1, max_depth and max_children >= 0")
-        group = int(group)
-        if group < 1 or cond_tokens.shape[0] % group:
-            raise ValueError(f"group must divide the {cond_tokens.shape[0]} condition rows, got {group}")
-        S = cond_tokens.shape[0] // group
+        S = cond_tokens.shape[0]
         cond_tokens = cond_tokens.float()
         gens = [torch.Generator().manual_seed(int(seed) + i) for i in range(S)]
         rows = [self._initial_row(keep, max_nodes) for _ in range(S)]
@@ -190,12 +181,9 @@ class ArticulationModel:
             active = [i for i, r in enumerate(rows) if not all(r["done"])]
             if not active:
                 break
-            batch = self._batch([rows[i] for i in active for _ in range(group)])
+            batch = self._batch([rows[i] for i in active])
             out, _ = self.net(batch, None, None, modality, memory=memory,
-                              cond_index=torch.tensor([i * group + g for i in active
-                                                       for g in range(group)]))
-            if group > 1:
-                out = {k: v.view(len(active), group, *v.shape[1:]).mean(1) for k, v in out.items()}
+                              cond_index=torch.tensor(active))
             for b, i in enumerate(active):
                 if follow_plan and "plan" in out and rows[i].get("plan") is None:
                     rows[i]["plan"] = out["plan"][b].argmax(-1).tolist()   # (labels,)
