@@ -10,6 +10,7 @@ ROUTES: dict[tuple[str, ...], tuple[str, str]] = {
     ("export",): ("model.export.commands", "export the built-in example object(s) to URDF folders"),
     ("data", "render"): ("model.imaging.commands", "render dataset objects for image conditioning"),
     ("data", "partmaps"): ("model.imaging.commands", "part-centre maps of the rendered views"),
+    ("data", "features"): ("model.imaging.commands", "cache encoder features of the rendered views"),
     ("data",): ("model.data.commands", "synth / prepare / stats of the articulated-object dataset"),
     ("train", "sdf"): ("model.geometry.commands", "train the tri-plane SDF auto-encoder"),
     ("train", "prior"): ("model.geometry.commands", "train the codebook diffusion shape prior"),

@@ -457,7 +457,8 @@ def test_partmaps_of_a_render_set_and_a_trunk_trained_on_them(tiny_set, tmp_path
     """`artformer data partmaps` maps every rendered view (each part seen in the render is
     counted once); the file is reused; `image-trunk --centre-weight` learns the maps beside
     the counts and records both losses; --init-trunk starts from a trunk, and a missing map
-    file or a checkpoint without a trunk is refused with a message."""
+    file or a checkpoint without a trunk is refused with a message; `data features` caches a
+    trunk's features where the trainer reads them."""
     import shutil
 
     from model.imaging.commands import main as commands_main
@@ -519,3 +520,20 @@ def test_partmaps_of_a_render_set_and_a_trunk_trained_on_them(tiny_set, tmp_path
                               CountHeadConfig(**{**tr["count_head"]["config"], "max_count": 3})) is None
     assert initial_count_head(image_ckpt, cfg) is None
     assert cli_main(trunk_args + ["--out", str(tmp_path / "t3"), "--init-trunk", str(image_ckpt)]) == 2
+
+    # `artformer data features` caches what the trainer reads: the same file, reused as it is
+    from model.encoders.image import ImageEncoder, ImageEncoderConfig
+    from model.imaging.features import build_feature_cache, cache_path, feature_tag
+    assert commands_main(["data", "features", *common, "--trunk", str(tmp_path / "t1" / "trunk.pt"),
+                          "--splits", "train,val"]) == 0
+    enc = ImageEncoder(ImageEncoderConfig())
+    enc.load_tail_state_dict(tr["state_dict"])
+    tag = feature_tag(enc, tr["tag"])
+    path = cache_path(renders, tag=tag)
+    stamp = path.stat().st_mtime_ns
+    ids = fmt.split_ids(tiny_set / "prepared", "train") + fmt.split_ids(tiny_set / "prepared", "val")
+    cache = build_feature_cache(renders, ids, encoder=enc, tag=tag)
+    assert sorted(cache["ids"]) == sorted(set(ids)) and path.stat().st_mtime_ns == stamp
+    assert tuple(cache["feats"].shape[1:3]) == (2, enc.net._blocks[15]._block_args.input_filters)
+    assert commands_main(["data", "features", *common, "--trunk", str(tmp_path / "garbage.pt")]) == 2
+    assert commands_main(["data", "features", *common, "--splits", "nope"]) == 2

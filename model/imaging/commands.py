@@ -1,4 +1,5 @@
-"""`artformer data render`, `data partmaps`, `artformer train image`, `image-trunk` and `image-counts` (issue 8)."""
+"""`artformer data render`, `data partmaps`, `data features`, `artformer train image`,
+`image-trunk` and `image-counts` (issue 8)."""
 from __future__ import annotations
 
 import argparse
@@ -56,6 +57,47 @@ def _partmaps(argv: list[str]) -> int:
     return 1 if pm["failed"] else 0
 
 
+def _features(argv: list[str]) -> int:
+    ap = argparse.ArgumentParser(prog="artformer data features",
+                                 description="Cache the encoder features of every rendered view of a "
+                                             "dataset, as `artformer train image` does on first use "
+                                             "(one process per render set runs the sets in parallel).")
+    ap.add_argument("--data", default="data/prepared/v1", help="prepared dataset folder")
+    ap.add_argument("--renders", default="data/renders/v1", help="its render folder")
+    ap.add_argument("--trunk", default=None,
+                    help="a fine-tuned trunk (`artformer train image-trunk` OUT/trunk.pt); default ImageNet's")
+    ap.add_argument("--image-size", type=int, default=224, help="encoder input size (a multiple of 224)")
+    ap.add_argument("--splits", default="train,val,test", help="splits whose objects are cached")
+    ap.add_argument("--threads", type=int, default=1, help="torch threads (default 1)")
+    args = ap.parse_args(argv)
+    import time
+
+    import torch
+
+    from model.data import format as fmt
+    from model.encoders.image import ImageEncoder, ImageEncoderConfig
+
+    from .features import IMAGENET, build_feature_cache, cache_path, feature_tag
+    from .trunk import TrunkError, load_trunk
+    torch.set_num_threads(max(1, args.threads))
+    t0 = time.time()
+    try:
+        ids = [i for s in args.splits.split(",") if s for i in fmt.split_ids(args.data, s)]
+        enc = ImageEncoder(ImageEncoderConfig(image_size=args.image_size))
+        trunk = load_trunk(args.trunk) if args.trunk else None
+        if trunk is not None:
+            enc.load_tail_state_dict(trunk["state_dict"])
+        tag = feature_tag(enc, IMAGENET if trunk is None else trunk["tag"])
+        kw = {} if tag == IMAGENET else {"encoder": enc, "tag": tag}
+        cache = build_feature_cache(args.renders, ids, progress=True, **kw)
+    except (TrunkError, FileNotFoundError, KeyError, ValueError) as e:
+        print(f"artformer data features: {e}", file=sys.stderr)
+        return 2
+    print(f"features of {len(cache['ids'])} objects ({tuple(cache['feats'].shape)}, tag {tag}) in "
+          f"{time.time() - t0:.0f} s -> {cache_path(args.renders, tag=tag)}")
+    return 0
+
+
 def main(argv: list[str]) -> int:
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     words = tuple(argv[:2])
@@ -63,6 +105,8 @@ def main(argv: list[str]) -> int:
         return _render(argv[2:])
     if words == ("data", "partmaps"):
         return _partmaps(argv[2:])
+    if words == ("data", "features"):
+        return _features(argv[2:])
     if words == ("train", "image"):
         from .train import cli_main
         return cli_main(argv[2:])
