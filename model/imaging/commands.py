@@ -34,12 +34,17 @@ def _render(argv: list[str]) -> int:
     return 1 if rep.failed and not rep.rendered else 0
 
 
-def _partmaps(argv: list[str]) -> int:
-    ap = argparse.ArgumentParser(prog="artformer data partmaps",
-                                 description="Per-label part-centre maps (7x7) of every rendered view, "
-                                             "for `artformer train image-trunk --centre-weight`.")
+def _render_set_parser(name: str, description: str) -> argparse.ArgumentParser:
+    """A `artformer data NAME` parser with the (--data, --renders) pair it works on."""
+    ap = argparse.ArgumentParser(prog=f"artformer data {name}", description=description)
     ap.add_argument("--data", default="data/prepared/v1", help="prepared dataset folder")
     ap.add_argument("--renders", default="data/renders/v1", help="its render folder")
+    return ap
+
+
+def _partmaps(argv: list[str]) -> int:
+    ap = _render_set_parser("partmaps", "Per-label part-centre maps (7x7) of every rendered view, "
+                                        "for `artformer train image-trunk --centre-weight`.")
     ap.add_argument("--image", default=None,
                     help="image checkpoint whose count labels are mapped (default: the shipped one)")
     ap.add_argument("--workers", type=int, default=2, help="processes (default 2)")
@@ -58,12 +63,9 @@ def _partmaps(argv: list[str]) -> int:
 
 
 def _features(argv: list[str]) -> int:
-    ap = argparse.ArgumentParser(prog="artformer data features",
-                                 description="Cache the encoder features of every rendered view of a "
-                                             "dataset, as `artformer train image` does on first use "
-                                             "(one process per render set runs the sets in parallel).")
-    ap.add_argument("--data", default="data/prepared/v1", help="prepared dataset folder")
-    ap.add_argument("--renders", default="data/renders/v1", help="its render folder")
+    ap = _render_set_parser("features", "Cache the encoder features of every rendered view of a "
+                                        "dataset, as `artformer train image` does on first use "
+                                        "(one process per render set runs the sets in parallel).")
     ap.add_argument("--trunk", default=None,
                     help="a fine-tuned trunk (`artformer train image-trunk` OUT/trunk.pt); default ImageNet's")
     ap.add_argument("--image-size", type=int, default=224, help="encoder input size (a multiple of 224)")
