@@ -79,7 +79,7 @@ def _features(argv: list[str]) -> int:
     from model.data import format as fmt
     from model.encoders.image import ImageEncoder, ImageEncoderConfig
 
-    from .features import IMAGENET, build_feature_cache, cache_path, feature_tag
+    from .features import IMAGENET, build_feature_cache, cache_path, encoder_cache_args
     from .trunk import TrunkError, load_trunk
     torch.set_num_threads(max(1, args.threads))
     t0 = time.time()
@@ -89,8 +89,8 @@ def _features(argv: list[str]) -> int:
         trunk = load_trunk(args.trunk) if args.trunk else None
         if trunk is not None:
             enc.load_tail_state_dict(trunk["state_dict"])
-        tag = feature_tag(enc, IMAGENET if trunk is None else trunk["tag"])
-        kw = {} if tag == IMAGENET else {"encoder": enc, "tag": tag}
+        kw = encoder_cache_args(enc, IMAGENET if trunk is None else trunk["tag"])
+        tag = kw.get("tag", IMAGENET)
         cache = build_feature_cache(args.renders, ids, progress=True, **kw)
     except (TrunkError, FileNotFoundError, KeyError, ValueError) as e:
         print(f"artformer data features: {e}", file=sys.stderr)

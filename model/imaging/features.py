@@ -44,6 +44,13 @@ def feature_tag(encoder, trunk_tag: str = IMAGENET) -> str:
     return f"{trunk_tag}-{cfg.image_size}px{pool}"
 
 
+def encoder_cache_args(encoder, weights: str = IMAGENET) -> dict:
+    """``build_feature_cache``'s ``encoder``/``tag`` for ``encoder`` carrying ``weights``
+    (IMAGENET or a fine-tuned trunk's tag): none when its tag is the default cache's."""
+    tag = feature_tag(encoder, weights)
+    return {} if tag == IMAGENET else {"encoder": encoder, "tag": tag}
+
+
 def cache_path(render_root: os.PathLike, split: int = CACHE_SPLIT, tag: str = IMAGENET) -> Path:
     """OUT/features/trunk<split>.pt for the ImageNet weights, trunk<split>-<tag>.pt for a
     fine-tuned trunk (model.imaging.trunk)."""

@@ -214,7 +214,7 @@ def train_image(rc: ImageRunConfig) -> Path:
                                           own_input_tokens, prepare_data)
     from model.encoders.image import FINE_SPLIT, GRID, ImageEncoder, ImageEncoderConfig
 
-    from .features import IMAGENET, ViewFeatures, build_feature_cache, feature_tag
+    from .features import IMAGENET, ViewFeatures, build_feature_cache, encoder_cache_args
     from .renders import load_render_manifest, rendered_ids
 
     tc, ic = rc.train, rc.image
@@ -276,13 +276,11 @@ def train_image(rc: ImageRunConfig) -> Path:
     extra, extra_info = _extra_items(rc, data, view, cfg.predict_z, out / "cache")
     t0 = time.time()
 
-    tag = feature_tag(encoder, IMAGENET if trunk is None else trunk["tag"])
+    enc_kw = encoder_cache_args(encoder, IMAGENET if trunk is None else trunk["tag"])
 
     def features(root, ids, split=None):
         kw = {} if split is None else {"split": split}
-        if tag != IMAGENET:
-            kw.update(encoder=encoder, tag=tag)
-        return ViewFeatures(build_feature_cache(root, ids, progress=rc.progress, **kw))
+        return ViewFeatures(build_feature_cache(root, ids, progress=rc.progress, **kw, **enc_kw))
 
     feats = features(rc.renders, [it.id for it in tr + va])
     fine = features(rc.renders, list(feats.index), FINE_SPLIT) if ic.multiscale else None
