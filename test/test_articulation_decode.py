@@ -151,6 +151,36 @@ def test_follow_plan_holds_end_decisions_to_the_plan_head():
                                              follow_plan=True)] == [1, 1, 1, 1]
 
 
+def test_plans_may_leave_labels_free_and_trees_carry_their_log_probability():
+    """A negative plan entry leaves that label's END decisions to the network; every tree
+    records the untempered log-probability of its END and joint-type decisions and the START
+    plan head's count logits."""
+    import math
+    tok, mask = _cond(S=2)
+    am = _planning_model(end_bias=8.0, plan_count=0)
+    n = len(am.cfg.count_labels)
+    free = am.decode(tok, mask, seed=0, temperature=0, max_nodes=12)
+    loose = am.decode(tok, mask, seed=0, temperature=0, max_nodes=12,
+                      plan=torch.full((2, n), -1, dtype=torch.long))
+    held = am.decode(tok, mask, seed=0, temperature=0, max_nodes=12,
+                     plan=torch.zeros(2, n, dtype=torch.long))
+    assert [t.num_nodes for t in free] == [12, 12]
+    assert all(np.array_equal(a.parents, b.parents) and a.labels == b.labels
+               for a, b in zip(free, loose))
+    assert [t.num_nodes for t in held] == [1, 1]
+    # the root's only counted decision: END (logit 8) overridden by the plan to stop
+    for t in held:
+        assert t.log_prob == pytest.approx(math.log(1 / (1 + math.exp(8.0))), rel=1e-5)
+        assert t.plan_logits.shape == (n, am.cfg.plan_max_count + 1)
+        assert int(np.argmax(t.plan_logits[0])) == 0
+    # the free trees: 11 children added at p = sigmoid(8) each, plus their joint types
+    for t in free:
+        assert t.log_prob < 11 * math.log(1 / (1 + math.exp(-8.0))) < 0
+    sampled = am.decode(tok.repeat(3, 1, 1), mask.repeat(3, 1), seed=3, temperature=1.0,
+                        max_nodes=12)
+    assert all(math.isfinite(t.log_prob) and t.log_prob < 0 for t in sampled)
+
+
 def test_editing_keeps_the_given_nodes_and_regrows():
     am = _random_model(end_bias=0.5, seed=2)
     tok, mask = _cond(S=2)

@@ -228,3 +228,42 @@ def test_image_grid_positions_make_token_order_matter():
     old = asdict(preset("tiny")[0])
     old.pop("cond_grid")
     assert ArticulationConfig.from_dict(old).cond_grid == {}
+
+
+def test_count_tokens_carry_their_distributions_to_the_decoder():
+    """With cfg.count_tokens the condition ends with one token per counted label whose first
+    ``classes`` channels are a count distribution: those channels reach the outputs, the
+    padding channels after them do not, too few tokens are refused, and configs from before
+    count tokens load without them."""
+    from dataclasses import asdict
+
+    from model.articulation.config import ArticulationConfig
+    from model.imaging.counts import pack_count_tokens
+    torch.manual_seed(0)
+    tb = _tree_batch([[-1, 0, 0]], seed=2)
+    cfg, _ = preset("tiny", cond_grid={"image": [7, 7]}, count_tokens={"image": [3, 5]})
+    net = ArticulationTransformer(cfg).eval()
+    grid = torch.randn(1, 49, 1280)
+    probs = torch.softmax(torch.randn(1, 3, 5), -1)
+    cond = pack_count_tokens(grid, probs)
+    assert cond.shape == (1, 52, 1280)
+    assert torch.equal(cond[:, 49:, :5], probs) and not cond[:, 49:, 5:].any()
+    cmask = torch.ones(1, 52, dtype=torch.bool)
+    with torch.no_grad():
+        a, _ = net(tb, cond, cmask, "image")
+        other = pack_count_tokens(grid, torch.softmax(torch.randn(1, 3, 5), -1))
+        b, _ = net(tb, other, cmask, "image")
+        padded = cond.clone()
+        padded[:, 49:, 5:] = 7.0
+        c, _ = net(tb, padded, cmask, "image")
+    assert not torch.allclose(a["art"], b["art"], atol=1e-5), "the distributions are read"
+    assert torch.allclose(a["art"], c["art"]), "channels past the classes are ignored"
+    with pytest.raises(ValueError, match="count tokens"):
+        net(tb, grid[:, :3], cmask[:, :3], "image")
+    with pytest.raises(ValueError, match="position grid"):
+        net(tb, grid, cmask[:, :49], "image")      # 49 tokens read as 46 + 3 count tokens
+    with pytest.raises(ValueError, match="do not fit"):
+        pack_count_tokens(torch.zeros(1, 49, 4), probs)
+    old = asdict(preset("tiny")[0])
+    old.pop("count_tokens")
+    assert ArticulationConfig.from_dict(old).count_tokens == {}

@@ -22,7 +22,7 @@ def tiny_set(tmp_path_factory):
 
 
 def _run(root, trainable_blocks: int, steps: int, own_inputs: float = 0.0, multiscale=False,
-         init="none", out=None, extra=(), trunk="", image_size=224):
+         init="none", out=None, extra=(), trunk="", image_size=224, count_tokens=""):
     from model.articulation.config import preset
     from model.articulation.targets import StandInTargets
     from model.imaging.train import ImageRunConfig, ImageTrainConfig, train_image
@@ -34,7 +34,8 @@ def _run(root, trainable_blocks: int, steps: int, own_inputs: float = 0.0, multi
                         out=str(out or root / f"run{trainable_blocks}"), net=net, train=tc,
                         image=ImageTrainConfig(trainable_blocks=trainable_blocks, init=init,
                                                multiscale=multiscale, trunk=trunk,
-                                               image_size=image_size),
+                                               image_size=image_size,
+                                               count_tokens=count_tokens),
                         targets=tg, progress=False, extra=list(extra))
     return train_image(rc), tg, tc
 
@@ -537,3 +538,88 @@ def test_partmaps_of_a_render_set_and_a_trunk_trained_on_them(tiny_set, tmp_path
     assert tuple(cache["feats"].shape[1:3]) == (2, enc.net._blocks[15]._block_args.input_filters)
     assert commands_main(["data", "features", *common, "--trunk", str(tmp_path / "garbage.pt")]) == 2
     assert commands_main(["data", "features", *common, "--splits", "nope"]) == 2
+
+
+def _trunk_file(path, labels: list, shift: float, seed: int = 0):
+    """A trunk file as `artformer train image-trunk` writes it: ImageNet's blocks 13-14 moved
+    by ``shift`` and an untrained count head over ``labels`` (a mechanics fixture; training
+    one is covered by test_fine_tuned_trunk_feeds_the_image_model)."""
+    from dataclasses import asdict
+
+    from model.core.state import half_state
+    from model.encoders.image import ImageEncoder, ImageEncoderConfig
+    from model.imaging.counts import CountHead, CountHeadConfig
+    from model.imaging.trunk import TRUNK_KIND, trunk_keys, trunk_tag
+    net = ImageEncoder(ImageEncoderConfig()).net
+    sd = net.state_dict()
+    state = half_state({k: sd[k] + shift for k in trunk_keys(net, 13)})
+    torch.manual_seed(seed)
+    head = CountHead(CountHeadConfig(labels=list(labels)))
+    torch.save({"kind": TRUNK_KIND, "freeze": 13, "split": 15, "tag": trunk_tag(state),
+                "state_dict": state,
+                "count_head": {"config": asdict(head.cfg), "state_dict": half_state(head.state_dict())},
+                "train": {"command": "fixture", "seed": seed}}, path)
+    return path
+
+
+def test_count_tokens_join_the_image_condition(tiny_set, tmp_path):
+    """`train image --count-tokens TRUNK_PT`: the trunk's count head turns the cached map of
+    every view into one token per label carrying its count distribution; the checkpoint
+    keeps the head, the loader adds the same tokens to every image, a continued run keeps
+    them, and a head of another trunk or a missing head is refused."""
+    from dataclasses import asdict
+
+    from model.encoders.image import preprocess
+    from model.imaging.counts import (CountHead, CountHeadConfig, count_distributions,
+                                      count_token_entry)
+    from model.imaging.model import ImageModelError, load_image_model
+    from model.imaging.renders import view_paths
+
+    image_ckpt, _, _ = _run(tiny_set, 0, 2, out=tmp_path / "img")
+    labels = load_image_model(image_ckpt).am.cfg.count_labels
+    trunk = _trunk_file(tmp_path / "trunk.pt", labels, 1e-3)
+    path, _, _ = _run(tiny_set, 0, 3, out=tmp_path / "ct", trunk=str(trunk),
+                      count_tokens=str(trunk))
+    ck = torch.load(path, map_location="cpu", weights_only=False)
+    n = len(labels)
+    assert ck["config"]["count_tokens"] == {"image": [n, 21]}
+    assert ck["count_tokens"]["trunk_tag"] == ck["image_encoder"]["trunk_info"]["tag"]
+    im = load_image_model(path)
+    assert im.token_counter is not None and im.counter is None
+    png = str(view_paths(tiny_set / "renders", "cabinet")[1])
+    tokens, mask, plan = im.condition(png)
+    assert tokens.shape == (1, 49 + n, 1280) and mask.shape == (1, 49 + n) and plan is None
+    with torch.no_grad():
+        _, h = im.encoder.tokens_and_features(preprocess(png), 15)
+    probs = count_distributions(im.token_counter, h)
+    assert torch.allclose(tokens[0, 49:, :21], probs[0], atol=1e-5)
+    assert torch.allclose(tokens[0, 49:, :21].sum(-1), torch.ones(n), atol=1e-4)
+    assert not tokens[0, 49:, 21:].any()
+    trees = im.decode_image(png, samples=2, seed=0, max_nodes=8, temperature=1.0)
+    assert len(trees) == 2 and all(t.num_nodes >= 1 for t in trees)
+    # a continued run keeps the count tokens without being told again
+    path2, _, _ = _run(tiny_set, 0, 2, out=tmp_path / "ct2", init=str(path))
+    ck2 = torch.load(path2, map_location="cpu", weights_only=False)
+    assert ck2["config"]["count_tokens"] == {"image": [n, 21]}
+    assert load_image_model(path2).condition(png)[0].shape == (1, 49 + n, 1280)
+    # a count head reading another trunk than the run's features is refused
+    other = _trunk_file(tmp_path / "other.pt", labels, 2e-3, seed=1)
+    with pytest.raises(ValueError, match="count head reads trunk"):
+        _run(tiny_set, 0, 1, out=tmp_path / "bad", trunk=str(trunk), count_tokens=str(other))
+    # a network that expects count tokens without its head, or a head of the wrong shape
+    ck.pop("count_tokens")
+    torch.save(ck, tmp_path / "headless.pt")
+    with pytest.raises(ImageModelError, match="no count_tokens head"):
+        load_image_model(tmp_path / "headless.pt")
+    ck = torch.load(path, map_location="cpu", weights_only=False)
+    small = torch.load(trunk, map_location="cpu", weights_only=False)
+    head10 = CountHead(CountHeadConfig(labels=list(labels), max_count=10))
+    small["count_head"] = {"config": asdict(head10.cfg), "state_dict": head10.state_dict()}
+    ck["count_tokens"] = count_token_entry(small)
+    torch.save(ck, tmp_path / "reshaped.pt")
+    with pytest.raises(ImageModelError, match="expects count tokens"):
+        load_image_model(tmp_path / "reshaped.pt")
+    ck["config"]["count_tokens"] = {"image": [n, 11]}       # config and weights disagree
+    torch.save(ck, tmp_path / "mismatched.pt")
+    with pytest.raises(ImageModelError, match="do not fit its config"):
+        load_image_model(tmp_path / "mismatched.pt")

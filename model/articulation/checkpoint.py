@@ -84,7 +84,10 @@ def build_network(ckpt: dict) -> ArticulationTransformer:
     cfg = ArticulationConfig.from_dict(ckpt["config"])
     net = ArticulationTransformer(cfg)
     sd = {k: v.float() if v.is_floating_point() else v for k, v in ckpt["state_dict"].items()}
-    missing, unexpected = net.load_state_dict(sd, strict=False)
+    try:
+        missing, unexpected = net.load_state_dict(sd, strict=False)
+    except RuntimeError as e:                  # a tensor of another shape than the config's
+        raise CheckpointError(f"checkpoint weights do not fit its config: {e}") from e
     if missing or unexpected:
         raise CheckpointError(f"checkpoint weights do not fit its config: missing {missing[:5]}, "
                               f"unexpected {unexpected[:5]}")

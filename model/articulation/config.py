@@ -43,6 +43,10 @@ class ArticulationConfig:
                                   # lie on that grid (the image's 7x7 feature map) and get a
                                   # learned 2-D position embedding (sin-cos initialised);
                                   # text states carry their positions already
+    count_tokens: dict = field(default_factory=dict)   # modality -> [labels, classes]: its
+                                  # condition ends with that many count tokens, one per label,
+                                  # whose first ``classes`` channels hold a count head's
+                                  # probabilities of 0..classes-1 parts (model.imaging.counts)
     num_codebooks: int = 4        # codebook logits P: (num_codebooks, codebook_size)
     codebook_size: int = 128
     predict_z: bool = False       # True = ablation no_shape_prior: regress z directly
@@ -62,6 +66,7 @@ class ArticulationConfig:
         d = dict(d)
         d.setdefault("plan_head", False)   # checkpoints from before the plan head
         d.setdefault("cond_grid", {})      # ... and before grid position embeddings
+        d.setdefault("count_tokens", {})   # ... and before count tokens
         return cls(**d)
 
 
@@ -123,7 +128,7 @@ def preset(name: str, ablation: str = "none", **overrides) -> tuple[Articulation
         raise ValueError(f"unknown ablation {ablation!r}; choose one of {ABLATIONS}")
     net, train = PRESETS[name]
     net = replace(net, cond_dims=dict(net.cond_dims), count_labels=list(net.count_labels),
-                  cond_grid=dict(net.cond_grid))
+                  cond_grid=dict(net.cond_grid), count_tokens=dict(net.count_tokens))
     train = replace(train)
     if ablation == "no_tpe":
         net.use_tpe = False

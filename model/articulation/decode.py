@@ -22,6 +22,7 @@ from typing import Optional, Union
 
 import numpy as np
 import torch
+from torch.nn import functional as F
 
 from model.core.objects import TOKEN_DIM, ArticulatedObject, JointType
 
@@ -42,6 +43,9 @@ class DecodedTree:
     cs_raw (K, 64): the network's c_s; P_logits (K, C, N) codebook logits (None for the
     no_shape_prior ablation, which gives z (K, Z) instead); kept (K,) True for nodes given by
     ``keep``; source_index (K,): index of a kept node in the ``keep`` object's parts (-1 new).
+    log_prob: the untempered network's log-probability of the tree's END and joint-type
+    decisions (labels and continuous outputs are regressed, not sampled); plan_logits
+    (labels, max_count + 1) the START plan head's per-label count logits (None without it).
     """
     tokens: np.ndarray
     joint_types: np.ndarray
@@ -54,6 +58,8 @@ class DecodedTree:
     z: Optional[np.ndarray] = None
     kept: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
     source_index: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    log_prob: float = 0.0
+    plan_logits: Optional[np.ndarray] = None
 
     @property
     def num_nodes(self) -> int:
@@ -160,7 +166,8 @@ class ArticulationModel:
         Needs a checkpoint trained with the plan head; ignored otherwise.
 
         ``plan`` (S, len(count_labels)) integer counts from elsewhere (the image count head,
-        model.imaging.counts) replaces the START plan head's and is always followed.
+        model.imaging.counts) replaces the START plan head's and is always followed; a
+        negative count leaves that label's END decisions to the network.
         """
         if max_nodes < 1 or max_depth < 0 or max_children < 0:
             raise ValueError("max_nodes must be >= 1, max_depth and max_children >= 0")
@@ -185,6 +192,8 @@ class ArticulationModel:
             out, _ = self.net(batch, None, None, modality, memory=memory,
                               cond_index=torch.tensor(active))
             for b, i in enumerate(active):
+                if "plan" in out and rows[i]["plan_logits"] is None:
+                    rows[i]["plan_logits"] = out["plan"][b].float().numpy().copy()
                 if follow_plan and "plan" in out and rows[i].get("plan") is None:
                     rows[i]["plan"] = out["plan"][b].argmax(-1).tolist()   # (labels,)
                 self._grow(rows[i], {k: v[b] for k, v in out.items()}, gens[i],
@@ -194,7 +203,8 @@ class ArticulationModel:
     def _initial_row(self, keep, max_nodes: int) -> dict:
         row = {"tok": [], "jt": [], "cs": [], "cs_raw": [], "geo": [], "par": [], "depth": [],
                "lab": [],
-               "nkids": [0], "done": [False], "kept": [], "src": []}   # index 0 = START
+               "nkids": [0], "done": [False], "kept": [], "src": [], "logp": 0.0,
+               "plan_logits": None}   # index 0 = START
         if keep is None:
             return row
         if isinstance(keep, DecodedTree):
@@ -278,23 +288,28 @@ class ArticulationModel:
             li = int(self.nearest_label(cs_raw[None])[0])
             count_i = self._count_index.get(self.table_labels[li], -1)
             plan = row.get("plan")
-            if plan is not None and t > 0 and count_i >= 0:
+            if plan is not None and t > 0 and count_i >= 0 and plan[count_i] >= 0:
                 # the plan overrides END for a label it counts (see decode); it only adds a
                 # child the END head finds plausible: a leaf's child head is untrained
                 short = row["lab"].count(count_i) < plan[count_i]
                 wants = short and (wants or float(logit) > -PLAN_ADD_MARGIN)
             if t == 0 and not row["tok"]:
                 wants = True   # an object has at least its root
+            if not capped and not (t == 0 and not row["tok"]):
+                # the untempered network's log-probability of this END decision
+                row["logp"] += float(F.logsigmoid(logit if wants else -logit))
             if capped or not wants:
                 row["done"][t] = True
                 continue
             if t == 0:
                 jt = int(JointType.FIXED)   # the single root is fixed to the world
-            elif temperature > 0:
-                probs = torch.softmax(out["jt"][t] / temperature, -1)
-                jt = int(torch.multinomial(probs, 1, generator=gen))
             else:
-                jt = int(out["jt"][t].argmax())
+                if temperature > 0:
+                    probs = torch.softmax(out["jt"][t] / temperature, -1)
+                    jt = int(torch.multinomial(probs, 1, generator=gen))
+                else:
+                    jt = int(out["jt"][t].argmax())
+                row["logp"] += float(torch.log_softmax(out["jt"][t].float(), -1)[jt])
             cs = self.table_cs_n[li]
             row["lab"].append(count_i)
             row["tok"].append(out["art"][t].float().clone())
@@ -338,4 +353,5 @@ class ArticulationModel:
             parents=np.asarray(row["par"], np.int64), labels=labels, category=category,
             cs=cs.numpy(), cs_raw=cs_raw.numpy(),
             P_logits=P, z=z, kept=np.asarray(row["kept"], bool),
-            source_index=np.asarray(row["src"], np.int64))
+            source_index=np.asarray(row["src"], np.int64), log_prob=row["logp"],
+            plan_logits=row["plan_logits"])

@@ -190,10 +190,17 @@ class ConditionEncoder(nn.Module):
     def __init__(self, cfg: ArticulationConfig):
         super().__init__()
         d = cfg.d_model
+        self.cfg_count = {m: tuple(v) for m, v in cfg.count_tokens.items()}
         self.proj = nn.ModuleDict({m: nn.Sequential(nn.Linear(dim, d), nn.LayerNorm(d))
                                    for m, dim in cfg.cond_dims.items()})
         self.pos = nn.ParameterDict({m: nn.Parameter(grid_sincos(int(h), int(w), d))
                                      for m, (h, w) in cfg.cond_grid.items()})
+        # count tokens (cfg.count_tokens): a label's count distribution -> one token, plus a
+        # learned embedding of which label it counts
+        self.count_in = nn.ModuleDict({m: nn.Sequential(nn.Linear(int(c), d), nn.LayerNorm(d))
+                                       for m, (n, c) in cfg.count_tokens.items()})
+        self.count_pos = nn.ParameterDict({m: nn.Parameter(torch.randn(1, int(n), d) * 0.02)
+                                           for m, (n, c) in cfg.count_tokens.items()})
         self.null = nn.Parameter(torch.randn(1, 1, d) * 0.02)
         self.layers = nn.ModuleList([Block(d, cfg.n_heads, cfg.ffn_mult, cfg.dropout, False)
                                      for _ in range(cfg.cond_layers)])
@@ -206,6 +213,13 @@ class ConditionEncoder(nn.Module):
                            f"this model knows {sorted(self.proj)}")
         U = tokens.shape[0]
         mask = mask.bool()
+        counts = None
+        if modality in self.count_in:        # the last n tokens carry count distributions
+            n, c = (int(v) for v in self.cfg_count[modality])
+            if tokens.shape[1] <= n:
+                raise ValueError(f"{modality} condition has {tokens.shape[1]} tokens; this model "
+                                 f"expects its features followed by {n} count tokens")
+            tokens, counts = tokens[:, :-n], tokens[:, -n:, :c]
         x = self.proj[modality](tokens.float())                          # (U, L, d)
         if modality in self.pos:
             pe = self.pos[modality]
@@ -213,6 +227,8 @@ class ConditionEncoder(nn.Module):
                 raise ValueError(f"{modality} condition has {x.shape[1]} tokens, this model's "
                                  f"position grid has {pe.shape[1]}")
             x = x + pe
+        if counts is not None:
+            x = torch.cat([x, self.count_in[modality](counts.float()) + self.count_pos[modality]], 1)
         enc_mask = mask.clone()
         enc_mask[:, 0] |= ~mask.any(1)        # an all-masked row: attend to something finite
         for layer in self.layers:

@@ -115,6 +115,35 @@ def load_count_head(entry: dict, labels: list[str]) -> CountHead:
     return head.eval()
 
 
+def count_token_entry(trunk: dict, path: str = "") -> dict:
+    """What an image checkpoint keeps of the count head whose distributions become its count
+    tokens (``ArticulationConfig.count_tokens``): the head of a trunk file of
+    ``artformer train image-trunk`` (config, fp16 weights) and the trunk it reads."""
+    if not trunk.get("count_head"):
+        raise CountHeadError(f"{path or 'the trunk'} has no count head")
+    return {"config": dict(trunk["count_head"]["config"]),
+            "state_dict": half_state(trunk["count_head"]["state_dict"]),
+            "trunk_tag": trunk.get("tag"), "source": str(path)}
+
+
+def count_distributions(head: CountHead, h: torch.Tensor) -> torch.Tensor:
+    """(B, C, 7, 7) encoder map -> (B, labels, max_count + 1) count probabilities."""
+    with torch.no_grad():
+        return F.softmax(head(h), -1)
+
+
+def pack_count_tokens(tokens: torch.Tensor, probs: torch.Tensor) -> torch.Tensor:
+    """Image tokens (B, L, D) and count probabilities (B, labels, classes) -> (B, L + labels, D):
+    one more token per label whose first ``classes`` channels are its distribution (the layout
+    ``ConditionEncoder`` reads for ``ArticulationConfig.count_tokens``); the rest are 0."""
+    B, n, c = probs.shape
+    if c > tokens.shape[2]:
+        raise ValueError(f"{c} count classes do not fit in {tokens.shape[2]}-channel tokens")
+    extra = tokens.new_zeros(B, n, tokens.shape[2])
+    extra[..., :c] = probs.to(tokens.dtype)
+    return torch.cat([tokens, extra], 1)
+
+
 # ---------------------------------------------------------------------------------------------
 # training
 # ---------------------------------------------------------------------------------------------

@@ -35,10 +35,11 @@ class ImageModelError(RuntimeError):
 class ImageArticulationModel:
     """An articulation model whose condition is an image (EfficientNet-Lite0 tokens)."""
 
-    def __init__(self, am, encoder: ImageEncoder, ckpt: dict, counter=None):
+    def __init__(self, am, encoder: ImageEncoder, ckpt: dict, counter=None, token_counter=None):
         self.am = am
         self.encoder = encoder.eval()
-        self.counter = counter                    # CountHead or None
+        self.counter = counter                    # CountHead (END plan) or None
+        self.token_counter = token_counter        # CountHead (count tokens) or None
         self.meta = {k: ckpt.get(k) for k in ("data_version", "seed", "command", "step",
                                               "renders", "init", "image_train_config")}
         if counter is not None:
@@ -48,18 +49,27 @@ class ImageArticulationModel:
     def condition(self, images: Union[ImageLike, list], frame: bool = False
                   ) -> tuple[torch.Tensor, torch.Tensor, Optional[torch.Tensor]]:
         """One image or a list → tokens (B, 49, D), mask (B, 49) bool and the count head's
-        per-label counts (B, len(count_labels)), or None without a count head. ``frame``:
+        per-label counts (B, len(count_labels)), or None without a count head. A model with
+        count tokens gets one more token per label (``pack_count_tokens``): (B, 49 + labels, D).
+        ``frame``:
         crop pictures with a plain background around their object first (as the renders
         frame it; model.encoders.framing)."""
         x = preprocess(images, self.encoder.config.image_size, self.encoder.config.background,
                        frame=frame)
         chunks = [x[s:s + ENCODE_BATCH] for s in range(0, len(x), ENCODE_BATCH)]
-        if self.counter is None:
-            tokens, plan = torch.cat([self.encoder(c) for c in chunks]), None     # (B, 49, D)
-        else:
-            outs = [self.encoder.tokens_and_features(c, self.counter.cfg.split) for c in chunks]
+        heads = [h for h in (self.counter, self.token_counter) if h is not None]
+        plan = None
+        if not heads:
+            tokens = torch.cat([self.encoder(c) for c in chunks])                 # (B, 49, D)
+        else:               # both heads read the map entering the same block (checked on load)
+            outs = [self.encoder.tokens_and_features(c, heads[0].cfg.split) for c in chunks]
             tokens = torch.cat([t for t, _ in outs])
-            plan = self.counter.predict(torch.cat([h for _, h in outs]))
+            h = torch.cat([h for _, h in outs])
+            if self.counter is not None:
+                plan = self.counter.predict(h)
+            if self.token_counter is not None:
+                from .counts import count_distributions, pack_count_tokens
+                tokens = pack_count_tokens(tokens, count_distributions(self.token_counter, h))
         return tokens, torch.ones(tokens.shape[:2], dtype=torch.bool), plan
 
     def encode(self, images: Union[ImageLike, list], frame: bool = False
@@ -97,7 +107,10 @@ def load_image_model(path: Union[str, os.PathLike, None] = None) -> ImageArticul
     if ckpt.get("condition") != "image":
         raise ImageModelError(f"{p} is a text-conditioned transformer checkpoint, not an image "
                               f"model; pass an `artformer train image` checkpoint")
-    net = build_network(ckpt)
+    try:
+        net = build_network(ckpt)
+    except CheckpointError as e:
+        raise ImageModelError(f"{p}: {e}") from e
     am = ArticulationModel(net, ckpt)
     enc_info = ckpt.get("image_encoder") or {}
     cfg = ImageEncoderConfig(**{k: (tuple(v) if k == "background" else v)
@@ -118,7 +131,27 @@ def load_image_model(path: Union[str, os.PathLike, None] = None) -> ImageArticul
         if encoder.split < counter.cfg.split:
             raise ImageModelError(f"{p}: the count head reads block {counter.cfg.split}, which "
                                   f"this checkpoint's encoder fine-tuned")
-    return ImageArticulationModel(am, encoder, ckpt, counter)
+    token_counter = None
+    if ckpt.get("count_tokens") is not None:
+        from .counts import CountHeadError, load_count_head
+        try:
+            token_counter = load_count_head(ckpt["count_tokens"], list(am.cfg.count_labels or []))
+        except CountHeadError as e:
+            raise ImageModelError(f"{p}: count tokens: {e}") from e
+        want = list((am.cfg.count_tokens or {}).get("image") or [])
+        have = [len(token_counter.cfg.labels), token_counter.cfg.max_count + 1]
+        if want != have:
+            raise ImageModelError(f"{p}: the network expects count tokens {want} (labels, "
+                                  f"classes), its count head gives {have}")
+        if encoder.split < token_counter.cfg.split or (
+                counter is not None and counter.cfg.split != token_counter.cfg.split):
+            raise ImageModelError(f"{p}: the count-token head reads block "
+                                  f"{token_counter.cfg.split}, which this checkpoint's encoder "
+                                  f"fine-tuned or its plan head does not read")
+    elif (am.cfg.count_tokens or {}).get("image"):
+        raise ImageModelError(f"{p}: the network expects count tokens but the checkpoint has "
+                              f"no count_tokens head")
+    return ImageArticulationModel(am, encoder, ckpt, counter, token_counter)
 
 
 def encode_image_condition(image: ImageLike, model: Optional[ImageArticulationModel] = None

@@ -49,6 +49,9 @@ class ImageTrainConfig:
                                    # init image checkpoint's, else ImageNet's
     image_size: int = 224          # encoder input side (448: 2x-upsampled renders, the finer
                                    # map pooled to the 7x7 token grid before the last block)
+    count_tokens: str = ""         # trunk file whose count head's per-label distributions
+                                   # join the condition as count tokens; "" = the init image
+                                   # checkpoint's count tokens if it has them, else none
 
 
 @dataclass
@@ -71,8 +74,9 @@ class ImageConditions:
     """Condition tokens of rendered views, from cached trunk features (and, for multiscale
     tokens, the cached 14x14 block-10 features ``fine``, same ids and views)."""
 
-    def __init__(self, feats, encoder, precompute: bool, chunk: int = 256, fine=None):
-        self.feats, self.encoder, self.fine = feats, encoder, fine
+    def __init__(self, feats, encoder, precompute: bool, chunk: int = 256, fine=None,
+                 counter=None):
+        self.feats, self.encoder, self.fine, self.counter = feats, encoder, fine, counter
         if encoder.config.multiscale and (fine is None or any(i not in fine for i in feats.ids)):
             raise ValueError("multiscale tokens need the block-10 feature cache of every object")
         self.tokens = None
@@ -90,20 +94,35 @@ class ImageConditions:
                     out[s:s + chunk] = encoder.tail(flat[s:s + chunk].float(), feats.split,
                                                     fine=f).half()
             self.tokens = out.view(N, K, NUM_TOKENS, encoder.dim)              # (N, K, 49, D)
+        self.counts = None
+        if counter is not None:   # the count head reads the cached map itself: every view once
+            from .counts import count_distributions
+            N, K = feats.feats.shape[:2]
+            flat = feats.feats.reshape(N * K, *feats.feats.shape[2:])
+            self.counts = torch.cat([count_distributions(counter, flat[s:s + chunk].float())
+                                     for s in range(0, N * K, chunk)]).view(N, K, *_count_shape(counter))
 
     @property
     def views(self) -> int:
         return self.feats.views
 
     def batch(self, ids: list[str], views: list[int]) -> tuple[torch.Tensor, torch.Tensor]:
-        """-> tokens (B, 49, D) float32, mask (B, 49) bool."""
+        """-> tokens (B, 49 [+ count labels], D) float32, mask (B, same) bool."""
+        rows = torch.tensor([self.feats.index[i] for i in ids])
         if self.tokens is not None:
-            rows = torch.tensor([self.feats.index[i] for i in ids])
             tok = self.tokens[rows, torch.as_tensor(views)].float()
         else:
             fine = None if self.fine is None else self.fine.batch(ids, views)
             tok = self.encoder.tail(self.feats.batch(ids, views), self.feats.split, fine=fine)
+        if self.counts is not None:
+            from .counts import pack_count_tokens
+            tok = pack_count_tokens(tok, self.counts[rows, torch.as_tensor(views)])
         return tok, torch.ones(tok.shape[:2], dtype=torch.bool)
+
+
+def _count_shape(counter) -> tuple[int, int]:
+    """(labels, classes) of a count head's distributions."""
+    return len(counter.cfg.labels), counter.cfg.max_count + 1
 
 
 def _image_batch(items, groups, views, geo_shape, conds: ImageConditions, label_cs=None,
@@ -298,12 +317,16 @@ def train_image(rc: ImageRunConfig) -> Path:
         log.info("extra training objects: %d (%s)", len(tr) - n0,
                  ", ".join(f"{x['data_version']}: {x['objects']}" for x in extra_info))
     t_feats = time.time() - t0
-    conds = ImageConditions(feats, encoder, precompute=ic.trainable_blocks == 0, fine=fine)
+    if cfg.child_counts and not cfg.count_labels:
+        cfg.count_labels = sorted(set(data.label_table["labels"]))
+    counter, counter_entry = _count_tokens_for(ic, init, trunk, cfg, feats.split)
+    if counter is not None:
+        cfg.count_tokens = {**cfg.count_tokens, "image": list(_count_shape(counter))}
+    conds = ImageConditions(feats, encoder, precompute=ic.trainable_blocks == 0, fine=fine,
+                            counter=counter)
     log.info("data %s: %d train / %d val objects x %d views; features %.0f s",
              data.data_version, len(tr), len(va), feats.views, t_feats)
 
-    if cfg.child_counts and not cfg.count_labels:
-        cfg.count_labels = sorted(set(data.label_table["labels"]))
     torch.manual_seed(tc.seed)
     net = ArticulationTransformer(cfg)
     if init is not None:
@@ -336,6 +359,7 @@ def train_image(rc: ImageRunConfig) -> Path:
                  "image_encoder": {"config": asdict(encoder.config), "tail": tail_sd,
                                    **_trunk_entry(trunk)},
                  "image_train_config": asdict(ic), "renders": render_info,
+                 **({"count_tokens": counter_entry} if counter_entry else {}),
                  "extra_train": extra_info,
                  "init": ic.init if init is not None else "none",
                  "elapsed": time.time() - t_loop, "history": history, "ablation": "none"}
@@ -434,6 +458,35 @@ def _trunk_for(ic: ImageTrainConfig, init: Optional[dict]) -> Optional[dict]:
     return None
 
 
+def _count_tokens_for(ic: ImageTrainConfig, init: Optional[dict], trunk: Optional[dict], cfg,
+                      split: int):
+    """The count head whose distributions a run adds as count tokens, and its checkpoint entry:
+    ``--count-tokens TRUNK_PT``'s head (it must read this run's trunk), else the init image
+    checkpoint's; (None, None) without either."""
+    from .counts import CountHeadError, count_token_entry, load_count_head
+    entry = None
+    if ic.count_tokens:
+        from .trunk import load_trunk
+        src = load_trunk(ic.count_tokens)
+        if trunk is None or src.get("tag") != trunk.get("tag"):
+            raise ValueError(f"--count-tokens {ic.count_tokens}: its count head reads trunk "
+                             f"{src.get('tag')}, this run's features are those of "
+                             f"{None if trunk is None else trunk.get('tag')}")
+        entry = count_token_entry(src, ic.count_tokens)
+    elif init is not None and init.get("count_tokens"):
+        entry = init["count_tokens"]
+    if entry is None:
+        return None, None
+    try:
+        head = load_count_head(entry, list(cfg.count_labels or []))
+    except CountHeadError as e:
+        raise ValueError(f"count tokens: {e}") from e
+    if head.cfg.split != split:
+        raise ValueError(f"count tokens: the head reads block {head.cfg.split}, the feature cache "
+                         f"holds block {split}")
+    return head, entry
+
+
 def _trunk_entry(trunk: Optional[dict]) -> dict:
     """What an image checkpoint keeps of its fine-tuned trunk: the weights (fp16) and where
     they came from (without the per-evaluation history)."""
@@ -492,6 +545,9 @@ def _parser():
                     help="encoder input side, a multiple of 224 (448: the renders upsampled 2x so "
                          "small parts cover 4x the feature-map cells; the map entering the last "
                          "block is pooled back to 7x7); default 224")
+    ap.add_argument("--count-tokens", metavar="TRUNK_PT",
+                    help="add the count head of this trunk file (the run's own trunk) to the "
+                         "condition: one token per label carrying its count distribution")
     ap.add_argument("--no-positions", action="store_true",
                     help="no 2-D position embedding of the 7x7 image tokens (the earlier model)")
     ap.add_argument("--extra-train", nargs=2, action="append", default=[],
@@ -585,7 +641,7 @@ def cli_main(argv: list[str]) -> int:
     ic = ImageTrainConfig(trainable_blocks=args.trainable_blocks, tail_lr_mult=args.tail_lr_mult,
                           init=args.init, positions=not args.no_positions,
                           multiscale=args.multiscale, trunk=args.trunk or "",
-                          image_size=args.image_size)
+                          image_size=args.image_size, count_tokens=args.count_tokens or "")
     try:
         check_image_size(args.image_size)
     except ValueError as e:
