@@ -186,7 +186,7 @@ class Generator:
                 raise GenerationError("this model has no image stage (no image*.pt checkpoint)")
             from model.encoders.image import ImageInputError
             try:
-                cond, mask, counts = self.image_model.condition(image, cfg.frame_images)   # (1, 49, 1280)
+                cond, mask, counts = self.image_model.condition(image, cfg.frame_images)   # (1, 49[+n], D)
             except ImageInputError as e:
                 raise GenerationError(f"bad image: {e}") from e
             prompt = image if isinstance(image, str) else "<image>"
