@@ -121,37 +121,38 @@ def load_image_model(path: Union[str, os.PathLike, None] = None) -> ImageArticul
     if enc_info.get("tail"):
         encoder.load_tail_state_dict(enc_info["tail"])
     encoder.requires_grad_(False)
-    counter = None
-    if ckpt.get("count_head") is not None:
-        from .counts import CountHeadError, load_count_head
-        try:
-            counter = load_count_head(ckpt["count_head"], list(am.cfg.count_labels or []))
-        except CountHeadError as e:
-            raise ImageModelError(f"{p}: {e}") from e
-        if encoder.split < counter.cfg.split:
-            raise ImageModelError(f"{p}: the count head reads block {counter.cfg.split}, which "
-                                  f"this checkpoint's encoder fine-tuned")
-    token_counter = None
-    if ckpt.get("count_tokens") is not None:
-        from .counts import CountHeadError, load_count_head
-        try:
-            token_counter = load_count_head(ckpt["count_tokens"], list(am.cfg.count_labels or []))
-        except CountHeadError as e:
-            raise ImageModelError(f"{p}: count tokens: {e}") from e
+    counter = _checkpoint_count_head(p, ckpt, "count_head", am, encoder)
+    token_counter = _checkpoint_count_head(p, ckpt, "count_tokens", am, encoder)
+    if token_counter is not None:
         want = list((am.cfg.count_tokens or {}).get("image") or [])
         have = [len(token_counter.cfg.labels), token_counter.cfg.max_count + 1]
         if want != have:
             raise ImageModelError(f"{p}: the network expects count tokens {want} (labels, "
                                   f"classes), its count head gives {have}")
-        if encoder.split < token_counter.cfg.split or (
-                counter is not None and counter.cfg.split != token_counter.cfg.split):
-            raise ImageModelError(f"{p}: the count-token head reads block "
-                                  f"{token_counter.cfg.split}, which this checkpoint's encoder "
-                                  f"fine-tuned or its plan head does not read")
+        if counter is not None and counter.cfg.split != token_counter.cfg.split:
+            raise ImageModelError(f"{p}: its two count heads read different encoder blocks")
     elif (am.cfg.count_tokens or {}).get("image"):
         raise ImageModelError(f"{p}: the network expects count tokens but the checkpoint has "
                               f"no count_tokens head")
     return ImageArticulationModel(am, encoder, ckpt, counter, token_counter)
+
+
+def _checkpoint_count_head(p: Path, ckpt: dict, key: str, am, encoder: ImageEncoder):
+    """The count head stored under ``key`` ("count_head": END plan; "count_tokens": condition
+    tokens), or None; ImageModelError if it is damaged, counts other labels than the
+    transformer or reads a block the checkpoint's encoder fine-tuned."""
+    if ckpt.get(key) is None:
+        return None
+    from .counts import CountHeadError, load_count_head
+    what, prefix = ("count head", "") if key == "count_head" else ("count-token head", "count tokens: ")
+    try:
+        head = load_count_head(ckpt[key], list(am.cfg.count_labels or []))
+    except CountHeadError as e:
+        raise ImageModelError(f"{p}: {prefix}{e}") from e
+    if encoder.split < head.cfg.split:
+        raise ImageModelError(f"{p}: the {what} reads block {head.cfg.split}, which this "
+                              f"checkpoint's encoder fine-tuned")
+    return head
 
 
 def encode_image_condition(image: ImageLike, model: Optional[ImageArticulationModel] = None
