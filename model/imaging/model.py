@@ -51,9 +51,8 @@ class ImageArticulationModel:
         """One image or a list → tokens (B, 49, D), mask (B, 49) bool and the count head's
         per-label counts (B, len(count_labels)), or None without a count head. A model with
         count tokens gets one more token per label (``pack_count_tokens``): (B, 49 + labels, D).
-        ``frame``:
-        crop pictures with a plain background around their object first (as the renders
-        frame it; model.encoders.framing)."""
+        ``frame``: crop pictures with a plain background around their object first (as the
+        renders frame it; model.encoders.framing)."""
         x = preprocess(images, self.encoder.config.image_size, self.encoder.config.background,
                        frame=frame)
         chunks = [x[s:s + ENCODE_BATCH] for s in range(0, len(x), ENCODE_BATCH)]
