@@ -22,7 +22,8 @@ def tiny_set(tmp_path_factory):
 
 
 def _run(root, trainable_blocks: int, steps: int, own_inputs: float = 0.0, multiscale=False,
-         init="none", out=None, extra=(), trunk="", image_size=224, count_tokens=""):
+         init="none", out=None, extra=(), trunk="", image_size=224, count_tokens="",
+         count_truth=0.0):
     from model.articulation.config import preset
     from model.articulation.targets import StandInTargets
     from model.imaging.train import ImageRunConfig, ImageTrainConfig, train_image
@@ -35,7 +36,8 @@ def _run(root, trainable_blocks: int, steps: int, own_inputs: float = 0.0, multi
                         image=ImageTrainConfig(trainable_blocks=trainable_blocks, init=init,
                                                multiscale=multiscale, trunk=trunk,
                                                image_size=image_size,
-                                               count_tokens=count_tokens),
+                                               count_tokens=count_tokens,
+                                               count_truth=count_truth),
                         targets=tg, progress=False, extra=list(extra))
     return train_image(rc), tg, tc
 
@@ -602,6 +604,12 @@ def test_count_tokens_join_the_image_condition(tiny_set, tmp_path):
     ck2 = torch.load(path2, map_location="cpu", weights_only=False)
     assert ck2["config"]["count_tokens"] == {"image": [n, 21]}
     assert load_image_model(path2).condition(png)[0].shape == (1, 49 + n, 1280)
+    # half of the views may carry the true counts instead (a continued run, tokens kept)
+    path3, _, _ = _run(tiny_set, 0, 2, out=tmp_path / "ct3", init=str(path), count_truth=0.5)
+    assert torch.load(path3, map_location="cpu", weights_only=False)["image_train_config"][
+        "count_truth"] == 0.5
+    with pytest.raises(ValueError, match="count_truth needs count tokens"):
+        _run(tiny_set, 0, 1, out=tmp_path / "nt", count_truth=0.5)
     # a count head reading another trunk than the run's features is refused
     other = _trunk_file(tmp_path / "other.pt", labels, 2e-3, seed=1)
     with pytest.raises(ValueError, match="count head reads trunk"):
@@ -623,3 +631,24 @@ def test_count_tokens_join_the_image_condition(tiny_set, tmp_path):
     torch.save(ck, tmp_path / "mismatched.pt")
     with pytest.raises(ImageModelError, match="do not fit its config"):
         load_image_model(tmp_path / "mismatched.pt")
+
+
+def test_true_count_tokens_replace_the_heads_readings_of_chosen_rows():
+    from types import SimpleNamespace
+
+    from model.imaging.counts import pack_count_tokens
+    from model.imaging.train import _true_count_tokens
+    labels = ["body", "door", "drawer"]
+    probs = torch.full((2, 3, 4), 0.25)
+    cond = pack_count_tokens(torch.randn(2, 49, 16), probs)
+    before = cond.clone()
+    items = [SimpleNamespace(labels=["body", "door", "door"]),
+             SimpleNamespace(labels=["body"] + ["drawer"] * 9)]
+    _true_count_tokens(cond, items, labels, 4, [False, True])
+    assert torch.equal(cond[0], before[0]), "an unselected row keeps the head's readings"
+    assert torch.equal(cond[1, :49], before[1, :49]), "the image tokens are untouched"
+    want = torch.zeros(3, 16)
+    want[0, 1] = want[1, 0] = want[2, 3] = 1.0          # 1 body, 0 doors, 9 drawers -> class 3
+    assert torch.equal(cond[1, 49:], want)
+    _true_count_tokens(cond, items, labels, 4, [True, False])
+    assert cond[0, 49:, :4].argmax(-1).tolist() == [1, 2, 0]

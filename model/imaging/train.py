@@ -52,6 +52,9 @@ class ImageTrainConfig:
     count_tokens: str = ""         # trunk file whose count head's per-label distributions
                                    # join the condition as count tokens; "" = the init image
                                    # checkpoint's count tokens if it has them, else none
+    count_truth: float = 0.0       # share of training views whose count tokens carry the
+                                   # object's true counts (one-hot) instead of the head's
+                                   # readings; validation always reads the head
 
 
 @dataclass
@@ -118,6 +121,17 @@ class ImageConditions:
             from .counts import pack_count_tokens
             tok = pack_count_tokens(tok, self.counts[rows, torch.as_tensor(views)])
         return tok, torch.ones(tok.shape[:2], dtype=torch.bool)
+
+
+def _true_count_tokens(cond: torch.Tensor, items: list, labels: list, classes: int, rows) -> None:
+    """Put the true per-label counts of ``items`` (one-hot over ``classes``, clipped) into the
+    count tokens at the end of the selected ``rows`` of ``cond`` (U, 49 + labels, D), in place."""
+    n = len(labels)
+    for u, (it, pick) in enumerate(zip(items, rows)):
+        if pick:
+            cond[u, -n:] = 0
+            for j, lab in enumerate(labels):
+                cond[u, -n + j, min(it.labels.count(lab), classes - 1)] = 1.0
 
 
 def _count_shape(counter) -> tuple[int, int]:
@@ -322,6 +336,9 @@ def train_image(rc: ImageRunConfig) -> Path:
     counter, counter_entry = _count_tokens_for(ic, init, trunk, cfg, feats.split)
     if counter is not None:
         cfg.count_tokens = {**cfg.count_tokens, "image": list(_count_shape(counter))}
+    if ic.count_truth and (counter is None or not 0 < ic.count_truth <= 1):
+        raise ValueError("count_truth needs count tokens (--count-tokens or an init checkpoint "
+                         f"with them) and a share in (0, 1], got {ic.count_truth}")
     conds = ImageConditions(feats, encoder, precompute=ic.trainable_blocks == 0, fine=fine,
                             counter=counter)
     log.info("data %s: %d train / %d val objects x %d views; features %.0f s",
@@ -393,6 +410,9 @@ def train_image(rc: ImageRunConfig) -> Path:
         views = rng.integers(0, feats.views, len(groups)).tolist()
         batch, targets, cond, cmask, idx = _image_batch(tr, groups, views, data.geo_shape, conds,
                                                         label_cs, cfg.count_labels)
+        if counter is not None and ic.count_truth > 0:
+            _true_count_tokens(cond, [tr[i] for i, _ in groups], cfg.count_labels,
+                               _count_shape(counter)[1], rng.random(len(groups)) < ic.count_truth)
         drop = torch.from_numpy(rng.random(len(groups)) < tc.cond_dropout)[idx]
         if tc.own_inputs > 0:   # scheduled sampling, as in text training
             own_input_tokens(net, tr, groups, batch, cond, cmask, "image", tc.own_inputs, rng,
@@ -548,6 +568,9 @@ def _parser():
     ap.add_argument("--count-tokens", metavar="TRUNK_PT",
                     help="add the count head of this trunk file (the run's own trunk) to the "
                          "condition: one token per label carrying its count distribution")
+    ap.add_argument("--count-truth", type=float, default=0.0, metavar="SHARE",
+                    help="with count tokens: share of training views whose tokens carry the "
+                         "object's true counts instead of the head's (default 0)")
     ap.add_argument("--no-positions", action="store_true",
                     help="no 2-D position embedding of the 7x7 image tokens (the earlier model)")
     ap.add_argument("--extra-train", nargs=2, action="append", default=[],
@@ -641,7 +664,8 @@ def cli_main(argv: list[str]) -> int:
     ic = ImageTrainConfig(trainable_blocks=args.trainable_blocks, tail_lr_mult=args.tail_lr_mult,
                           init=args.init, positions=not args.no_positions,
                           multiscale=args.multiscale, trunk=args.trunk or "",
-                          image_size=args.image_size, count_tokens=args.count_tokens or "")
+                          image_size=args.image_size, count_tokens=args.count_tokens or "",
+                          count_truth=args.count_truth)
     try:
         check_image_size(args.image_size)
     except ValueError as e:
