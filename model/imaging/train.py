@@ -79,13 +79,13 @@ class ImageConditions:
 
     def __init__(self, feats, encoder, precompute: bool, chunk: int = 256, fine=None,
                  counter=None):
-        self.feats, self.encoder, self.fine, self.counter = feats, encoder, fine, counter
+        self.feats, self.encoder, self.fine = feats, encoder, fine
         if encoder.config.multiscale and (fine is None or any(i not in fine for i in feats.ids)):
             raise ValueError("multiscale tokens need the block-10 feature cache of every object")
         self.tokens = None
+        N, K = feats.feats.shape[:2]
+        flat = feats.feats.reshape(N * K, *feats.feats.shape[2:])              # (N*K, C, 7, 7)
         if precompute:   # frozen encoder: every view's tokens once, fp16
-            N, K = feats.feats.shape[:2]
-            flat = feats.feats.reshape(N * K, *feats.feats.shape[2:])          # (N*K, C, 7, 7)
             ff = None
             if fine is not None:      # the fine rows in the trunk cache's row order
                 rows = torch.tensor([fine.index[i] for i in feats.ids])
@@ -100,8 +100,6 @@ class ImageConditions:
         self.counts = None
         if counter is not None:   # the count head reads the cached map itself: every view once
             from .counts import count_distributions
-            N, K = feats.feats.shape[:2]
-            flat = feats.feats.reshape(N * K, *feats.feats.shape[2:])
             self.counts = torch.cat([count_distributions(counter, flat[s:s + chunk].float())
                                      for s in range(0, N * K, chunk)]).view(N, K, *_count_shape(counter))
 
@@ -281,6 +279,10 @@ def train_image(rc: ImageRunConfig) -> Path:
     encoder = ImageEncoder(ImageEncoderConfig(trainable_blocks=ic.trainable_blocks,
                                               multiscale=ic.multiscale, image_size=ic.image_size))
     trunk = _trunk_for(ic, init)
+    has_tokens = bool(ic.count_tokens or (init or {}).get("count_tokens"))
+    if ic.count_truth and (not has_tokens or not 0 < ic.count_truth <= 1):   # before any loading
+        raise ValueError("count_truth needs count tokens (--count-tokens or an init checkpoint "
+                         f"with them) and a share in (0, 1], got {ic.count_truth}")
     if trunk is not None:
         encoder.load_tail_state_dict(trunk["state_dict"])
         log.info("encoder trunk: %s (blocks %d-%d fine-tuned, tag %s)", ic.trunk or ic.init,
@@ -336,9 +338,6 @@ def train_image(rc: ImageRunConfig) -> Path:
     counter, counter_entry = _count_tokens_for(ic, init, trunk, cfg, feats.split)
     if counter is not None:
         cfg.count_tokens = {**cfg.count_tokens, "image": list(_count_shape(counter))}
-    if ic.count_truth and (counter is None or not 0 < ic.count_truth <= 1):
-        raise ValueError("count_truth needs count tokens (--count-tokens or an init checkpoint "
-                         f"with them) and a share in (0, 1], got {ic.count_truth}")
     conds = ImageConditions(feats, encoder, precompute=ic.trainable_blocks == 0, fine=fine,
                             counter=counter)
     log.info("data %s: %d train / %d val objects x %d views; features %.0f s",
