@@ -126,6 +126,12 @@ def count_token_entry(trunk: dict, path: str = "") -> dict:
             "trunk_tag": trunk.get("tag"), "source": str(path)}
 
 
+def count_token_shape(head: CountHead) -> tuple[int, int]:
+    """(labels, classes) of a count head's distributions: the shape of its count tokens'
+    entry in ``ArticulationConfig.count_tokens``."""
+    return len(head.cfg.labels), head.cfg.max_count + 1
+
+
 def count_distributions(head: CountHead, h: torch.Tensor) -> torch.Tensor:
     """(B, C, 7, 7) encoder map -> (B, labels, max_count + 1) count probabilities."""
     with torch.no_grad():

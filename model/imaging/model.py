@@ -124,7 +124,8 @@ def load_image_model(path: Union[str, os.PathLike, None] = None) -> ImageArticul
     token_counter = _checkpoint_count_head(p, ckpt, "count_tokens", am, encoder)
     if token_counter is not None:
         want = list((am.cfg.count_tokens or {}).get("image") or [])
-        have = [len(token_counter.cfg.labels), token_counter.cfg.max_count + 1]
+        from .counts import count_token_shape
+        have = list(count_token_shape(token_counter))
         if want != have:
             raise ImageModelError(f"{p}: the network expects count tokens {want} (labels, "
                                   f"classes), its count head gives {have}")

@@ -33,6 +33,8 @@ import torch
 from model.core.state import half_state
 from model.encoders.image import NUM_TOKENS, check_image_size
 
+from .counts import count_token_shape
+
 log = logging.getLogger(__name__)
 
 
@@ -101,7 +103,8 @@ class ImageConditions:
         if counter is not None:   # the count head reads the cached map itself: every view once
             from .counts import count_distributions
             self.counts = torch.cat([count_distributions(counter, flat[s:s + chunk].float())
-                                     for s in range(0, N * K, chunk)]).view(N, K, *_count_shape(counter))
+                                     for s in range(0, N * K, chunk)]
+                                    ).view(N, K, *count_token_shape(counter))
 
     @property
     def views(self) -> int:
@@ -130,11 +133,6 @@ def _true_count_tokens(cond: torch.Tensor, items: list, labels: list, classes: i
             cond[u, -n:] = 0
             for j, lab in enumerate(labels):
                 cond[u, -n + j, min(it.labels.count(lab), classes - 1)] = 1.0
-
-
-def _count_shape(counter) -> tuple[int, int]:
-    """(labels, classes) of a count head's distributions."""
-    return len(counter.cfg.labels), counter.cfg.max_count + 1
 
 
 def _image_batch(items, groups, views, geo_shape, conds: ImageConditions, label_cs=None,
@@ -337,7 +335,7 @@ def train_image(rc: ImageRunConfig) -> Path:
         cfg.count_labels = sorted(set(data.label_table["labels"]))
     counter, counter_entry = _count_tokens_for(ic, init, trunk, cfg, feats.split)
     if counter is not None:
-        cfg.count_tokens = {**cfg.count_tokens, "image": list(_count_shape(counter))}
+        cfg.count_tokens = {**cfg.count_tokens, "image": list(count_token_shape(counter))}
     conds = ImageConditions(feats, encoder, precompute=ic.trainable_blocks == 0, fine=fine,
                             counter=counter)
     log.info("data %s: %d train / %d val objects x %d views; features %.0f s",
@@ -411,7 +409,7 @@ def train_image(rc: ImageRunConfig) -> Path:
                                                         label_cs, cfg.count_labels)
         if counter is not None and ic.count_truth > 0:
             _true_count_tokens(cond, [tr[i] for i, _ in groups], cfg.count_labels,
-                               _count_shape(counter)[1], rng.random(len(groups)) < ic.count_truth)
+                               count_token_shape(counter)[1], rng.random(len(groups)) < ic.count_truth)
         drop = torch.from_numpy(rng.random(len(groups)) < tc.cond_dropout)[idx]
         if tc.own_inputs > 0:   # scheduled sampling, as in text training
             own_input_tokens(net, tr, groups, batch, cond, cmask, "image", tc.own_inputs, rng,
