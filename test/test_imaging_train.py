@@ -538,13 +538,26 @@ def test_partmaps_of_a_render_set_and_a_trunk_trained_on_them(tiny_set, tmp_path
     cache = build_feature_cache(renders, ids, encoder=enc, tag=tag)
     assert sorted(cache["ids"]) == sorted(set(ids)) and path.stat().st_mtime_ns == stamp
     assert tuple(cache["feats"].shape[1:3]) == (2, enc.net._blocks[15]._block_args.input_filters)
+    # --multiscale adds the block-10 map the multiscale tokens read, from the same encoder
+    from model.encoders.image import FINE_SPLIT, preprocess
+    from model.imaging.features import load_feature_cache
+    from model.imaging.renders import view_paths
+    assert commands_main(["data", "features", *common, "--trunk", str(tmp_path / "t1" / "trunk.pt"),
+                          "--splits", "train", "--multiscale"]) == 0
+    assert path.stat().st_mtime_ns == stamp                            # block 15: reused
+    fine = load_feature_cache(renders, FINE_SPLIT, tag)
+    oid = fine["ids"][0]
+    assert tuple(fine["feats"].shape[1:]) == (2, 112, 14, 14) and fine["split"] == FINE_SPLIT
+    with torch.no_grad():
+        want = enc.features_at(preprocess([str(view_paths(renders, oid)[1])], 224), FINE_SPLIT)
+    torch.testing.assert_close(fine["feats"][0, 1].float(), want[0], atol=2e-2, rtol=1e-2)
     assert commands_main(["data", "features", *common, "--trunk", str(tmp_path / "garbage.pt")]) == 2
     assert commands_main(["data", "features", *common, "--splits", "nope"]) == 2
 
 
-def _trunk_file(path, labels: list, shift: float, seed: int = 0):
-    """A trunk file as `artformer train image-trunk` writes it: ImageNet's blocks 13-14 moved
-    by ``shift`` and an untrained count head over ``labels`` (a mechanics fixture; training
+def _trunk_file(path, labels: list, shift: float, seed: int = 0, freeze: int = 13):
+    """A trunk file as `artformer train image-trunk` writes it: ImageNet's blocks FREEZE-14
+    moved by ``shift`` and an untrained count head over ``labels`` (a mechanics fixture; training
     one is covered by test_fine_tuned_trunk_feeds_the_image_model)."""
     from dataclasses import asdict
 
@@ -554,14 +567,45 @@ def _trunk_file(path, labels: list, shift: float, seed: int = 0):
     from model.imaging.trunk import TRUNK_KIND, trunk_keys, trunk_tag
     net = ImageEncoder(ImageEncoderConfig()).net
     sd = net.state_dict()
-    state = half_state({k: sd[k] + shift for k in trunk_keys(net, 13)})
+    state = half_state({k: sd[k] + shift for k in trunk_keys(net, freeze)})
     torch.manual_seed(seed)
     head = CountHead(CountHeadConfig(labels=list(labels)))
-    torch.save({"kind": TRUNK_KIND, "freeze": 13, "split": 15, "tag": trunk_tag(state),
+    torch.save({"kind": TRUNK_KIND, "freeze": freeze, "split": 15, "tag": trunk_tag(state),
                 "state_dict": state,
                 "count_head": {"config": asdict(head.cfg), "state_dict": half_state(head.state_dict())},
                 "train": {"command": "fixture", "seed": seed}}, path)
     return path
+
+
+def test_multiscale_tokens_read_the_fine_tuned_trunk(tiny_set, tmp_path):
+    """--multiscale with --trunk: both cached maps (block 10's and the one entering block 15)
+    come from the fine-tuned blocks, and the loader makes the same 1728-d tokens of a PNG."""
+    from model.encoders.image import FINE_SPLIT, ImageEncoder, ImageEncoderConfig, preprocess
+    from model.imaging.features import load_feature_cache
+    from model.imaging.model import load_image_model
+    from model.imaging.renders import view_paths
+    from model.imaging.trunk import load_trunk
+
+    image_ckpt, _, _ = _run(tiny_set, 0, 2, out=tmp_path / "img")
+    labels = load_image_model(image_ckpt).am.cfg.count_labels
+    trunk = _trunk_file(tmp_path / "trunk.pt", labels, 0.02, freeze=8)
+    path, _, _ = _run(tiny_set, 0, 2, multiscale=True, init=str(image_ckpt), trunk=str(trunk),
+                      out=tmp_path / "ms")
+    tag = load_trunk(trunk)["tag"]
+    im = load_image_model(path)
+    png = str(view_paths(tiny_set / "renders", "cabinet")[1])
+    tokens, _ = im.encode(png)
+    coarse = load_feature_cache(tiny_set / "renders", tag=tag)
+    fine = load_feature_cache(tiny_set / "renders", FINE_SPLIT, tag)
+    r, q = coarse["ids"].index("cabinet"), fine["ids"].index("cabinet")
+    with torch.no_grad():
+        cached = im.encoder.tail(coarse["feats"][r, 1:2].float(), start=coarse["split"],
+                                 fine=fine["feats"][q, 1:2].float())
+        imagenet = ImageEncoder(ImageEncoderConfig()).features_at(preprocess([png], 224), FINE_SPLIT)
+    assert tokens.shape == (1, 49, 1728)
+    # the caches hold fp16: equal to what the loader reads up to its rounding
+    assert float((tokens - cached).abs().max()) <= 1e-3 * float(tokens.abs().max())
+    assert not torch.allclose(fine["feats"][q, 1].float(), imagenet[0], atol=2e-2, rtol=1e-2)
 
 
 def test_count_tokens_join_the_image_condition(tiny_set, tmp_path):

@@ -70,6 +70,8 @@ def _features(argv: list[str]) -> int:
                     help="a fine-tuned trunk (`artformer train image-trunk` OUT/trunk.pt); default ImageNet's")
     ap.add_argument("--image-size", type=int, default=224, help="encoder input size (a multiple of 224)")
     ap.add_argument("--splits", default="train,val,test", help="splits whose objects are cached")
+    ap.add_argument("--multiscale", action="store_true",
+                    help="also cache the block-10 map (14x14x112) that `train image --multiscale` reads")
     ap.add_argument("--threads", type=int, default=1, help="torch threads (default 1)")
     args = ap.parse_args(argv)
     import time
@@ -77,9 +79,9 @@ def _features(argv: list[str]) -> int:
     import torch
 
     from model.data import format as fmt
-    from model.encoders.image import ImageEncoder, ImageEncoderConfig
+    from model.encoders.image import FINE_SPLIT, ImageEncoder, ImageEncoderConfig
 
-    from .features import IMAGENET, build_feature_cache, cache_path, encoder_cache_args
+    from .features import CACHE_SPLIT, IMAGENET, build_feature_cache, cache_path, encoder_cache_args
     from .trunk import TrunkError, load_trunk
     torch.set_num_threads(max(1, args.threads))
     t0 = time.time()
@@ -91,12 +93,15 @@ def _features(argv: list[str]) -> int:
             enc.load_tail_state_dict(trunk["state_dict"])
         kw = encoder_cache_args(enc, IMAGENET if trunk is None else trunk["tag"])
         tag = kw.get("tag", IMAGENET)
-        cache = build_feature_cache(args.renders, ids, progress=True, **kw)
+        splits = [CACHE_SPLIT] + ([FINE_SPLIT] if args.multiscale else [])
+        for split in splits:
+            cache = build_feature_cache(args.renders, ids, progress=True, split=split, **kw)
+            print(f"features of {len(cache['ids'])} objects ({tuple(cache['feats'].shape)}, "
+                  f"tag {tag}) after {time.time() - t0:.0f} s -> "
+                  f"{cache_path(args.renders, split, tag=tag)}")
     except (TrunkError, FileNotFoundError, KeyError, ValueError) as e:
         print(f"artformer data features: {e}", file=sys.stderr)
         return 2
-    print(f"features of {len(cache['ids'])} objects ({tuple(cache['feats'].shape)}, tag {tag}) in "
-          f"{time.time() - t0:.0f} s -> {cache_path(args.renders, tag=tag)}")
     return 0
 
 

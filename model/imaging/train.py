@@ -88,17 +88,19 @@ class ImageConditions:
         N, K = feats.feats.shape[:2]
         flat = feats.feats.reshape(N * K, *feats.feats.shape[2:])              # (N*K, C, 7, 7)
         if precompute:   # frozen encoder: every view's tokens once, fp16
-            ff = None
             if fine is not None:      # the fine rows in the trunk cache's row order
                 rows = torch.tensor([fine.index[i] for i in feats.ids])
-                ff = fine.feats[rows].reshape(N * K, *fine.feats.shape[2:])
             out = torch.empty(N * K, NUM_TOKENS, encoder.dim, dtype=torch.float16)
             with torch.no_grad():
                 for s in range(0, N * K, chunk):
-                    f = None if ff is None else ff[s:s + chunk].float()
+                    f = None
+                    if fine is not None:   # gathered chunk by chunk: the cache is GBs
+                        at = torch.arange(s, min(s + chunk, N * K))
+                        f = fine.feats[rows[at // K], at % K].float()
                     out[s:s + chunk] = encoder.tail(flat[s:s + chunk].float(), feats.split,
                                                     fine=f).half()
             self.tokens = out.view(N, K, NUM_TOKENS, encoder.dim)              # (N, K, 49, D)
+            self.fine = None          # read into the tokens
         self.counts = None
         if counter is not None:   # the count head reads the cached map itself: every view once
             from .counts import count_distributions
@@ -328,6 +330,7 @@ def train_image(rc: ImageRunConfig) -> Path:
             tr = tr + items
         feats = merge_view_features(fparts)
         fine = merge_view_features(gparts) if ic.multiscale else None
+        del fparts, gparts, xf       # the merged copies hold them: free the GBs of the parts
         log.info("extra training objects: %d (%s)", len(tr) - n0,
                  ", ".join(f"{x['data_version']}: {x['objects']}" for x in extra_info))
     t_feats = time.time() - t0
@@ -338,6 +341,7 @@ def train_image(rc: ImageRunConfig) -> Path:
         cfg.count_tokens = {**cfg.count_tokens, "image": list(count_token_shape(counter))}
     conds = ImageConditions(feats, encoder, precompute=ic.trainable_blocks == 0, fine=fine,
                             counter=counter)
+    del fine                         # conds keeps what it still needs (GBs for multiscale)
     log.info("data %s: %d train / %d val objects x %d views; features %.0f s",
              data.data_version, len(tr), len(va), feats.views, t_feats)
 
