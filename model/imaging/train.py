@@ -88,15 +88,13 @@ class ImageConditions:
         N, K = feats.feats.shape[:2]
         flat = feats.feats.reshape(N * K, *feats.feats.shape[2:])              # (N*K, C, 7, 7)
         if precompute:   # frozen encoder: every view's tokens once, fp16
-            if fine is not None:      # the fine rows in the trunk cache's row order
-                rows = torch.tensor([fine.index[i] for i in feats.ids])
             out = torch.empty(N * K, NUM_TOKENS, encoder.dim, dtype=torch.float16)
             with torch.no_grad():
                 for s in range(0, N * K, chunk):
                     f = None
-                    if fine is not None:   # gathered chunk by chunk: the cache is GBs
-                        at = torch.arange(s, min(s + chunk, N * K))
-                        f = fine.feats[rows[at // K], at % K].float()
+                    if fine is not None:   # the same views' fine maps, chunk by chunk (GBs)
+                        at = range(s, min(s + chunk, N * K))
+                        f = fine.batch([feats.ids[n // K] for n in at], [n % K for n in at])
                     out[s:s + chunk] = encoder.tail(flat[s:s + chunk].float(), feats.split,
                                                     fine=f).half()
             self.tokens = out.view(N, K, NUM_TOKENS, encoder.dim)              # (N, K, 49, D)
