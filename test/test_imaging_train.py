@@ -503,8 +503,8 @@ def test_partmaps_of_a_render_set_and_a_trunk_trained_on_them(tiny_set, tmp_path
     # a second run starts from the first one's blocks
     start = initial_trunk(tmp_path / "t1" / "trunk.pt", 12)
     assert all(torch.equal(start[k], v.float()) for k, v in tr["state_dict"].items())
-    with pytest.raises(ValueError, match="not 4"):
-        initial_trunk(tmp_path / "t1" / "trunk.pt", 4)
+    with pytest.raises(ValueError, match="more than 13"):
+        initial_trunk(tmp_path / "t1" / "trunk.pt", 13)           # would drop block 12
     with pytest.raises(ValueError, match="neither"):
         initial_trunk(image_ckpt, 12)
     (tmp_path / "garbage.pt").write_bytes(b"not a checkpoint")
@@ -514,6 +514,19 @@ def test_partmaps_of_a_render_set_and_a_trunk_trained_on_them(tiny_set, tmp_path
                                   "--init-trunk", str(tmp_path / "t1" / "trunk.pt")]) == 0
     t2 = load_trunk(tmp_path / "t2")
     assert t2["train"]["config"]["init"].endswith("trunk.pt") and t2["train"]["head_continued"]
+    # a continuation may unfreeze more blocks: block 11 starts at ImageNet's weights
+    assert cli_main(trunk_args + ["--freeze", "11", "--out", str(tmp_path / "t4"), "--steps", "2",
+                                  "--evals", "1", "--init-trunk", str(tmp_path / "t1" / "trunk.pt")]) == 0
+    t4 = load_trunk(tmp_path / "t4")
+    assert t4["freeze"] == 11 and any(k.startswith("_blocks.11.") for k in t4["state_dict"])
+    from model.encoders.image import ImageEncoder as _Enc, ImageEncoderConfig as _Cfg
+    imagenet = _Enc(_Cfg()).net.state_dict()
+
+    def gap(a, b, block):
+        ks = [k for k in t4["state_dict"] if k.startswith(f"_blocks.{block}.")]
+        return sum(float((a[k].float() - b[k].float()).abs().sum()) for k in ks)
+    assert gap(t4["state_dict"], tr["state_dict"], 12) < gap(t4["state_dict"], imagenet, 12)
+    assert gap(t4["state_dict"], imagenet, 11) < 0.5 * gap(tr["state_dict"], imagenet, 12)
     # the count head continues from a trunk file with the same labels, never from elsewhere
     from model.imaging.counts import CountHeadConfig
     cfg = CountHeadConfig(**tr["count_head"]["config"])

@@ -144,12 +144,15 @@ def centre_loss(pred: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
 
 
 def initial_trunk(path, freeze: int) -> dict:
-    """The fine-tuned blocks of a trunk file or of an image checkpoint, to start from."""
+    """The fine-tuned blocks of a trunk file or of an image checkpoint, to start from. A trunk
+    file may fine-tune fewer blocks than ``freeze``..14 (a continuation that unfreezes more:
+    the blocks it lacks start from ImageNet's weights), never more (its blocks before
+    ``freeze`` would be dropped)."""
     p = Path(path)
     if p.is_dir() or p.name == "trunk.pt":
         tr = load_trunk(p)
-        if tr["freeze"] != freeze:
-            raise ValueError(f"{p} fine-tunes blocks {tr['freeze']}..14, not {freeze}..14")
+        if tr["freeze"] < freeze:
+            raise ValueError(f"{p} fine-tunes blocks {tr['freeze']}..14, more than {freeze}..14")
         return {k: v.float() for k, v in tr["state_dict"].items()}
     if not p.exists():
         raise FileNotFoundError(f"--init-trunk {p} does not exist")
@@ -161,8 +164,8 @@ def initial_trunk(path, freeze: int) -> dict:
     if not state:
         raise ValueError(f"{p} is neither a trunk file nor an image checkpoint with a fine-tuned trunk")
     first = min(int(k.split(".")[1]) for k in state)
-    if first != freeze:
-        raise ValueError(f"{p} fine-tunes blocks {first}..14, not {freeze}..14")
+    if first < freeze:
+        raise ValueError(f"{p} fine-tunes blocks {first}..14, more than {freeze}..14")
     return {k: v.float() for k, v in state.items()}
 
 
@@ -261,10 +264,12 @@ def train_trunk(data_root: str, render_root: str, out: str, *, extra: Optional[l
     keys = trunk_keys(net, tc.freeze)
     if tc.init:
         start = initial_trunk(tc.init, tc.freeze)
-        if sorted(start) != sorted(keys):
-            raise ValueError(f"{tc.init}: its trunk blocks do not match blocks {tc.freeze}..14")
+        first = min(int(k.split(".")[1]) for k in start)
+        if sorted(start) != sorted(trunk_keys(net, first)):
+            raise ValueError(f"{tc.init}: its trunk blocks do not match blocks {first}..14")
         net.load_state_dict(start, strict=False)
-        log.info("trunk: starting from the blocks of %s", tc.init)
+        log.info("trunk: starting from the blocks %d..14 of %s%s", first, tc.init,
+                 f" (blocks {tc.freeze}..{first - 1}: ImageNet's)" if first > tc.freeze else "")
     params = [p for b in net._blocks[tc.freeze:COUNT_SPLIT] for p in b.parameters()]
     for p in params:
         p.requires_grad_(True)
