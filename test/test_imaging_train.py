@@ -519,8 +519,8 @@ def test_partmaps_of_a_render_set_and_a_trunk_trained_on_them(tiny_set, tmp_path
                                   "--evals", "1", "--init-trunk", str(tmp_path / "t1" / "trunk.pt")]) == 0
     t4 = load_trunk(tmp_path / "t4")
     assert t4["freeze"] == 11 and any(k.startswith("_blocks.11.") for k in t4["state_dict"])
-    from model.encoders.image import ImageEncoder as _Enc, ImageEncoderConfig as _Cfg
-    imagenet = _Enc(_Cfg()).net.state_dict()
+    from model.encoders.image import ImageEncoder, ImageEncoderConfig
+    imagenet = ImageEncoder(ImageEncoderConfig()).net.state_dict()
 
     def gap(a, b, block):
         ks = [k for k in t4["state_dict"] if k.startswith(f"_blocks.{block}.")]
@@ -538,7 +538,6 @@ def test_partmaps_of_a_render_set_and_a_trunk_trained_on_them(tiny_set, tmp_path
     assert cli_main(trunk_args + ["--out", str(tmp_path / "t3"), "--init-trunk", str(image_ckpt)]) == 2
 
     # `artformer data features` caches what the trainer reads: the same file, reused as it is
-    from model.encoders.image import ImageEncoder, ImageEncoderConfig
     from model.imaging.features import build_feature_cache, cache_path, feature_tag
     assert commands_main(["data", "features", *common, "--trunk", str(tmp_path / "t1" / "trunk.pt"),
                           "--splits", "train,val"]) == 0
