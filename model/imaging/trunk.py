@@ -125,6 +125,11 @@ def trunk_keys(net, freeze: int, split: int = COUNT_SPLIT) -> list[str]:
     return [k for k in net.state_dict() if k.startswith(keep)]
 
 
+def first_block(state: dict) -> int:
+    """The lowest block index among ``_blocks.<i>.`` keys of a trunk state dict."""
+    return min(int(k.split(".")[1]) for k in state)
+
+
 class CentreHead(nn.Module):
     """(B, C, 7, 7) trunk map → (B, labels, 7, 7) non-negative part-centre counts per cell."""
 
@@ -163,7 +168,7 @@ def initial_trunk(path, freeze: int) -> dict:
     state = (ck.get("image_encoder") or {}).get("trunk") if isinstance(ck, dict) else None
     if not state:
         raise ValueError(f"{p} is neither a trunk file nor an image checkpoint with a fine-tuned trunk")
-    first = min(int(k.split(".")[1]) for k in state)
+    first = first_block(state)
     if first < freeze:
         raise ValueError(f"{p} fine-tunes blocks {first}..14, more than {freeze}..14")
     return {k: v.float() for k, v in state.items()}
@@ -264,7 +269,7 @@ def train_trunk(data_root: str, render_root: str, out: str, *, extra: Optional[l
     keys = trunk_keys(net, tc.freeze)
     if tc.init:
         start = initial_trunk(tc.init, tc.freeze)
-        first = min(int(k.split(".")[1]) for k in start)
+        first = first_block(start)
         if sorted(start) != sorted(trunk_keys(net, first)):
             raise ValueError(f"{tc.init}: its trunk blocks do not match blocks {first}..14")
         net.load_state_dict(start, strict=False)
