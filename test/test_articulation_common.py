@@ -49,7 +49,8 @@ def _texts(cat, labels, door):
             "words": [f"{WORDS[n]} drawer cabinet" + (" door" if door else "")]}
 
 
-def write_toy_dataset(root, n: int = 24, seed: int = 0, points: int = 64) -> list[str]:
+def write_toy_dataset(root, n: int = 24, seed: int = 0, points: int = 64,
+                      version: str = "toy1") -> list[str]:
     """Write n objects (train/val/test = 60/20/20 %) to ``root``; returns the ids."""
     rng = np.random.default_rng(seed)
     ids, splits = [], {"train": [], "val": [], "test": []}
@@ -76,7 +77,7 @@ def write_toy_dataset(root, n: int = 24, seed: int = 0, points: int = 64) -> lis
                              center=np.zeros((K, 3), np.float32), scale=np.ones(K, np.float32))
         ids.append(oid)
     fmt.atomic_write_json(f"{root}/manifest.json", {
-        "format": fmt.FORMAT_VERSION, "data_version": "toy1", "source": "test", "seed": seed,
+        "format": fmt.FORMAT_VERSION, "data_version": version, "source": "test", "seed": seed,
         "splits": splits, "labels": sorted({"body", "drawer", "handle", "door", "cap"}),
         "categories": ["Bottle", "StorageFurniture"]})
     return ids

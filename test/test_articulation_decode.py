@@ -12,6 +12,7 @@ from model.articulation.config import preset
 from model.articulation.decode import ArticulationModel, DecodedTree
 from model.articulation.network import ArticulationTransformer
 from model.core.objects import ArticulatedObject, JointType
+from model.data import format as fmt
 
 from test_articulation_common import write_toy_dataset
 
@@ -328,6 +329,35 @@ def test_init_from_checkpoint_fine_tunes(trained, tmp_path):
     assert ft["init"] == str(out / "transformer.pt") and ft["step"] == 1
     w0, w1 = src["state_dict"]["head_jt.weight"], ft["state_dict"]["head_jt.weight"]
     assert torch.allclose(w0, w1, atol=1e-6), "weights start from the given checkpoint"
+
+
+def test_extra_training_sets_join_the_training_objects(trained, tmp_path):
+    """--extra-train: every split of another prepared set (its own data version) trains
+    beside --data's train split, normalised with --data's stats; recorded in the checkpoint;
+    the main set again and a resume with other extras are refused."""
+    from model.articulation.commands import main
+    from model.articulation.data import TextCache
+    root, data, out = trained
+    extra = tmp_path / "extra"
+    write_toy_dataset(extra, n=5, seed=1, version="toy2")
+    run = tmp_path / "x"
+    base = ["train", "transformer", "--data", str(data), "--prior", "none", "--preset", "tiny",
+            "--no-progress", "--out", str(run)]
+    assert main(base + ["--steps", "2", "--extra-train", str(extra)]) == 0
+    ck = read_checkpoint(run / "transformer.pt")
+    assert ck["extra_train"] == [{"data": str(extra), "data_version": "toy2", "objects": 5}]
+    assert ck["data_version"] == "toy1"
+    ref = read_checkpoint(out / "transformer.pt")       # stats come from --data alone
+    assert np.allclose(ck["stats"]["tok_mean"], ref["stats"]["tok_mean"])
+    # every description of the extra objects, test split included, was encoded for training
+    cache = TextCache.load(run / "cache" / "texts.pt", ck["text_encoder"])
+    xtexts = {t for i in fmt.load_manifest(extra)["splits"]["test"]
+              for ts in fmt.load_record(extra, i).descriptions.values() for t in ts}
+    assert xtexts and xtexts <= set(cache.index)
+    with pytest.raises(ValueError, match="own version"):
+        main(base[:-1] + [str(tmp_path / "y"), "--steps", "1", "--extra-train", str(data)])
+    with pytest.raises(ValueError, match="same --extra-train"):
+        main(base + ["--steps", "3", "--resume"])
 
 
 def test_own_inputs_feed_back_the_networks_teacher_forced_predictions(trained, tmp_path):

@@ -2,7 +2,8 @@
 
     artformer train transformer --data data/prepared/v1 --prior model/weights/prior_small.pt \
         --sdf model/weights/sdf_small.pt --preset small --out runs/transformer_small \
-        [--resume] [--ablation none|no_tpe|one_codebook|no_shape_prior] [--steps N] [--minutes M]
+        [--resume] [--ablation none|no_tpe|one_codebook|no_shape_prior] [--steps N] [--minutes M] \
+        [--extra-train data/prepared/v1x ...]     # more objects (all splits) for training
     artformer train transformer --eval runs/transformer_small/transformer.pt \
         --data data/prepared/v1 --split test      # structure-alignment figure of a checkpoint
 """
@@ -31,6 +32,10 @@ def _parser() -> argparse.ArgumentParser:
     ap.add_argument("--resume", action="store_true", help="continue from OUT/last.pt")
     ap.add_argument("--init", metavar="CKPT", help="start from the weights of CKPT (fine-tune; "
                                                    "tensors whose shapes differ are skipped)")
+    ap.add_argument("--extra-train", metavar="DATA", action="append", default=[],
+                    help="another prepared dataset (own data version) whose objects, all "
+                         "splits, are added to the training set (repeatable); validation "
+                         "stays --data's val split")
     ap.add_argument("--ablation", default="none", choices=ABLATIONS)
     ap.add_argument("--steps", type=int, help="override max_steps")
     ap.add_argument("--minutes", type=float, help="override the wall-clock budget (0 = none)")
@@ -102,13 +107,14 @@ def main(argv: list[str]) -> int:
     command = "artformer train transformer " + " ".join(shlex.quote(a) for a in argv)
     path = train(RunConfig(data=args.data, out=args.out, net=net_cfg, train=tc, targets=targets,
                            resume=args.resume, init=args.init, ablation=args.ablation,
-                           command=command,
+                           command=command, extra=list(args.extra_train),
                            progress=not args.no_progress))
     if args.half:
         from .checkpoint import build_network, read_checkpoint, save_checkpoint
         ck = read_checkpoint(path)
         net = build_network(ck)
-        keep = {k: ck[k] for k in ("ablation", "targets", "elapsed", "history", "init") if k in ck}
+        keep = {k: ck[k] for k in ("ablation", "targets", "elapsed", "history", "init",
+                                   "extra_train") if k in ck}
         save_checkpoint(args.half, net, stats=ck["stats"], label_table=ck["label_table"],
                         text_encoder=ck["text_encoder"], data_version=ck["data_version"],
                         seed=ck["seed"], command=ck["command"], step=ck["step"],

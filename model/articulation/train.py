@@ -132,6 +132,26 @@ def prepare_data(data_root: str, targets, *, predict_z: bool = False,
                         {s: recs[s] for s in splits})
 
 
+def extra_training_items(data: PreparedData, root: str, prefix: str, targets, *,
+                         predict_z: bool = False, cache_dir: Optional[str] = None,
+                         progress: bool = True) -> tuple[list[TreeItem], str]:
+    """Every object of another prepared dataset (all three splits) as training items, its
+    ids prefixed with ``prefix`` and its tokens normalised with ``data``'s stats and label
+    table, so the network trained on ``data`` reads them the same way. Its data version
+    must differ from ``data``'s (the same objects twice would leak validation objects into
+    training). -> (items, its data version)."""
+    import dataclasses
+    xd = prepare_data(root, targets, predict_z=predict_z, splits=("train", "val", "test"),
+                      cache_dir=cache_dir, stats=data.stats, label_table=data.label_table,
+                      progress=progress)
+    if xd.data_version == data.data_version:
+        raise ValueError(f"extra data {root} has the main data's version "
+                         f"{data.data_version!r}; extra objects need their own version")
+    items = [dataclasses.replace(it, id=prefix + it.id)
+             for s in ("train", "val", "test") for it in xd.items[s]]
+    return items, xd.data_version
+
+
 def all_samples(items: list[TreeItem]) -> list[tuple[int, int]]:
     return [(i, k) for i, it in enumerate(items) for k in range(it.num_rounds)]
 
@@ -230,6 +250,7 @@ class RunConfig:
     ablation: str = "none"
     command: str = ""
     progress: bool = True
+    extra: list = field(default_factory=list)   # more prepared datasets, all splits to train
 
 
 @torch.no_grad()
@@ -283,9 +304,18 @@ def train(rc: RunConfig) -> Path:
     data = prepare_data(rc.data, _CodebookView(tg, cfg), predict_z=cfg.predict_z,
                         cache_dir=str(out / "cache"), progress=rc.progress)
     tr, va = data.items["train"], data.items.get("val") or []
-    log.info("data %s: %d train / %d val objects, %d train rounds, %d labels",
+    extra_info = []
+    for j, root in enumerate(rc.extra):
+        items, version = extra_training_items(data, root, f"x{j}:", _CodebookView(tg, cfg),
+                                              predict_z=cfg.predict_z,
+                                              cache_dir=str(out / "cache"),
+                                              progress=rc.progress)
+        tr = tr + items
+        extra_info.append({"data": str(root), "data_version": version, "objects": len(items)})
+    log.info("data %s: %d train / %d val objects, %d train rounds, %d labels%s",
              data.data_version, len(tr), len(va), len(all_samples(tr)),
-             len(data.label_table["labels"]))
+             len(data.label_table["labels"]),
+             "".join(f"; + {x['data_version']}: {x['objects']}" for x in extra_info))
     text_cache = TextCache.load(out / "cache" / "texts.pt", tc.text_encoder)
     n_before = len(text_cache.index)
     text_cache.add([t for it in tr + va for g in it.texts for t in g], tc.max_text_tokens,
@@ -317,6 +347,10 @@ def train(rc: RunConfig) -> Path:
         if ck["config"] != asdict(cfg):
             raise ValueError(f"{last} was trained with another config; drop --resume or use "
                              f"another --out")
+        had = [x["data_version"] for x in ck.get("extra_train", [])]
+        if had != [x["data_version"] for x in extra_info]:
+            raise ValueError(f"{last} was trained with extra data {had or 'none'}; resume it "
+                             f"with the same --extra-train folders, in the same order")
         net.load_state_dict(ck["state_dict"])
         opt.load_state_dict(ck["optimizer"])
         step = int(ck["step"])
@@ -330,7 +364,7 @@ def train(rc: RunConfig) -> Path:
 
     def save(path: Path, final: bool = False) -> None:
         extra = {"ablation": rc.ablation, "targets": getattr(tg, "name", "?"),
-                 "init": rc.init or "",
+                 "init": rc.init or "", "extra_train": extra_info,
                  "elapsed": elapsed_before + time.time() - t_loop, "history": history}
         if not final:
             extra["optimizer"] = opt.state_dict()

@@ -179,9 +179,7 @@ def merge_view_features(parts: list) -> "ViewFeatures":
 def _extra_items(rc: "ImageRunConfig", data, targets, predict_z: bool, cache_dir: Path):
     """Training items of every extra (data, renders) pair, all splits, ids prefixed 'x<j>:'
     and normalised with the main data's stats and label table; -> (items per pair, info)."""
-    import dataclasses
-
-    from model.articulation.train import prepare_data
+    from model.articulation.train import extra_training_items
     from .renders import load_render_manifest, rendered_ids
     main_manifest = load_render_manifest(rc.renders)
     out, info = [], []
@@ -191,21 +189,16 @@ def _extra_items(rc: "ImageRunConfig", data, targets, predict_z: bool, cache_dir
             if rman.get(k) != main_manifest.get(k):
                 raise ValueError(f"extra render set {rroot}: {k} {rman.get(k)!r} differs from "
                                  f"{rc.renders}'s {main_manifest.get(k)!r}")
-        xd = prepare_data(droot, targets, predict_z=predict_z, splits=("train", "val", "test"),
-                          cache_dir=str(cache_dir), stats=data.stats,
-                          label_table=data.label_table, progress=rc.progress)
-        if xd.data_version == data.data_version:
-            raise ValueError(f"extra data {droot} has the main data's version "
-                             f"{data.data_version!r}; extra objects need their own version")
-        items = [it for s in ("train", "val", "test") for it in xd.items[s]]
-        have = set(rendered_ids(rroot, [it.id for it in items]))
         prefix = f"x{j}:"
-        kept = [dataclasses.replace(it, id=prefix + it.id) for it in items if it.id in have]
+        items, version = extra_training_items(data, droot, prefix, targets, predict_z=predict_z,
+                                              cache_dir=str(cache_dir), progress=rc.progress)
+        have = set(rendered_ids(rroot, [it.id[len(prefix):] for it in items]))
+        kept = [it for it in items if it.id[len(prefix):] in have]
         if len(kept) < len(items):
             log.warning("extra %s: %d of %d objects have no renders and are skipped", droot,
                         len(items) - len(kept), len(items))
         out.append((prefix, rroot, kept))
-        info.append({"data": str(droot), "renders": str(rroot), "data_version": xd.data_version,
+        info.append({"data": str(droot), "renders": str(rroot), "data_version": version,
                      "objects": len(kept)})
     return out, info
 
