@@ -14,11 +14,11 @@ T = float(sys.argv[2]) if len(sys.argv) > 2 else 0.3
 n = 8
 tot = 0
 for p in prompts:
-    tok, mask = am.encode_text([p] * n)
+    tok, mask = am.encode_text([p])
     ok = []
     seen = {}
     for s in range(n):
-        tr = am.decode(tok[s:s+1], mask[s:s+1], seed=s, temperature=T, follow_plan=True)[0]
+        tr = am.decode(tok, mask, seed=s, temperature=T, follow_plan=True)[0]
         r = check(p, tr)
         ok.append(r.aligned)
         c = tr.summary()["counts"]

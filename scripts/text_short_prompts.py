@@ -6,10 +6,8 @@ from collections import Counter
 from model.articulation.decode import ArticulationModel
 from model.articulation.evaluate import _prompt_checker
 from model.data import format as fmt
+from model.data.vocab import CATEGORY_SYNONYMS, number_word, plural
 torch.set_num_threads(2)
-NUM = "zero one two three four five six seven eight nine ten eleven twelve thirteen fourteen fifteen sixteen".split()
-NOUN = {"StorageFurniture": "cabinet", "Safe": "safe", "Oven": "oven", "WashingMachine": "washing machine",
-        "Bottle": "bottle", "USB": "usb stick"}
 root, split, ck = sys.argv[1], sys.argv[2], sys.argv[3]
 check = _prompt_checker()
 am = ArticulationModel.load(ck)
@@ -17,11 +15,11 @@ m = fmt.load_manifest(root)
 prompts = []
 for i in m["splits"][split]:
     r = fmt.load_record(root, i)
-    c = Counter(l for l, j in zip(r.labels, r.joint_types) if l not in ("body", "handle"))
+    c = Counter(l for l in r.labels if l not in ("body", "handle"))
     if not c:
         continue
-    parts = [f"{'a' if n == 1 else NUM[n]} {lab}{'' if n == 1 else 's'}" for lab, n in sorted(c.items())]
-    prompts.append(f"a {NOUN[r.category]} with " + " and ".join(parts))
+    parts = [f"a {lab}" if n == 1 else f"{number_word(n)} {plural(lab)}" for lab, n in sorted(c.items())]
+    prompts.append(f"a {CATEGORY_SYNONYMS[r.category][0]} with " + " and ".join(parts))
 ok = 0
 bad = []
 for s in range(0, len(prompts), 32):

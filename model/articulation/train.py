@@ -13,7 +13,7 @@ import json
 import logging
 import math
 import time
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Optional
 
@@ -140,14 +140,13 @@ def extra_training_items(data: PreparedData, root: str, prefix: str, targets, *,
     table, so the network trained on ``data`` reads them the same way. Its data version
     must differ from ``data``'s (the same objects twice would leak validation objects into
     training). -> (items, its data version)."""
-    import dataclasses
     xd = prepare_data(root, targets, predict_z=predict_z, splits=("train", "val", "test"),
                       cache_dir=cache_dir, stats=data.stats, label_table=data.label_table,
                       progress=progress)
     if xd.data_version == data.data_version:
         raise ValueError(f"extra data {root} has the main data's version "
                          f"{data.data_version!r}; extra objects need their own version")
-    items = [dataclasses.replace(it, id=prefix + it.id)
+    items = [replace(it, id=prefix + it.id)
              for s in ("train", "val", "test") for it in xd.items[s]]
     return items, xd.data_version
 
@@ -301,12 +300,13 @@ def train(rc: RunConfig) -> Path:
         cfg.num_codebooks, cfg.codebook_size = int(tg.num_codebooks), int(tg.codebook_size)
     else:   # one_codebook ablation: see _CodebookView
         cfg.codebook_size = int(tg.num_codebooks) * int(tg.codebook_size)
-    data = prepare_data(rc.data, _CodebookView(tg, cfg), predict_z=cfg.predict_z,
+    view = _CodebookView(tg, cfg)
+    data = prepare_data(rc.data, view, predict_z=cfg.predict_z,
                         cache_dir=str(out / "cache"), progress=rc.progress)
     tr, va = data.items["train"], data.items.get("val") or []
     extra_info = []
     for j, root in enumerate(rc.extra):
-        items, version = extra_training_items(data, root, f"x{j}:", _CodebookView(tg, cfg),
+        items, version = extra_training_items(data, root, f"x{j}:", view,
                                               predict_z=cfg.predict_z,
                                               cache_dir=str(out / "cache"),
                                               progress=rc.progress)
