@@ -50,8 +50,9 @@ def _texts(cat, labels, door):
 
 
 def write_toy_dataset(root, n: int = 24, seed: int = 0, points: int = 64,
-                      version: str = "toy1") -> list[str]:
-    """Write n objects (train/val/test = 60/20/20 %) to ``root``; returns the ids."""
+                      version: str = "toy1", wordings: int = 1) -> list[str]:
+    """Write n objects (train/val/test = 60/20/20 %) to ``root``; returns the ids. With
+    ``wordings`` > 1 every description length gets that many wordings (numbered copies)."""
     rng = np.random.default_rng(seed)
     ids, splits = [], {"train": [], "val": [], "test": []}
     for i in range(n):
@@ -67,7 +68,8 @@ def write_toy_dataset(root, n: int = 24, seed: int = 0, points: int = 64,
         splits[split].append(oid)
         rec = fmt.ObjectRecord(id=oid, category=cat, split=split, labels=labels,
                                parents=parents, joint_types=jts, tokens=toks.tolist(),
-                               descriptions=_texts(cat, labels, door))
+                               descriptions={k: v + [f"{v[0]} ({j + 2})" for j in range(wordings - 1)]
+                                             for k, v in _texts(cat, labels, door).items()})
         fmt.save_record(root, rec)
         K = len(labels)
         pts = rng.uniform(-0.95, 0.95, size=(K, points, 3)) * rng.uniform(0.3, 1, size=(K, 1, 3))

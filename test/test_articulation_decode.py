@@ -345,7 +345,8 @@ def test_extra_training_sets_join_the_training_objects(trained, tmp_path):
             "--no-progress", "--out", str(run)]
     assert main(base + ["--steps", "2", "--extra-train", str(extra)]) == 0
     ck = read_checkpoint(run / "transformer.pt")
-    assert ck["extra_train"] == [{"data": str(extra), "data_version": "toy2", "objects": 5}]
+    assert ck["extra_train"] == [{"data": str(extra), "data_version": "toy2", "objects": 5,
+                                  "wordings": "all"}]
     assert ck["data_version"] == "toy1"
     ref = read_checkpoint(out / "transformer.pt")       # stats come from --data alone
     assert np.allclose(ck["stats"]["tok_mean"], ref["stats"]["tok_mean"])
@@ -358,6 +359,25 @@ def test_extra_training_sets_join_the_training_objects(trained, tmp_path):
         main(base[:-1] + [str(tmp_path / "y"), "--steps", "1", "--extra-train", str(data)])
     with pytest.raises(ValueError, match="same --extra-train"):
         main(base + ["--steps", "3", "--resume"])
+    # --extra-wordings 1: only the first wording of each length of the extra objects is
+    # encoded; --data's objects keep all of theirs; a resume must keep the same setting
+    extra3 = tmp_path / "extra3"
+    write_toy_dataset(extra3, n=5, seed=1, version="toy3", wordings=3)
+    run1 = tmp_path / "w1"
+    one = base[:-1] + [str(run1), "--extra-train", str(extra3), "--extra-wordings", "1"]
+    assert main(one + ["--steps", "2"]) == 0
+    assert read_checkpoint(run1 / "transformer.pt")["extra_train"][0]["wordings"] == 1
+    cache = TextCache.load(run1 / "cache" / "texts.pt", ck["text_encoder"])
+    recs = [fmt.load_record(extra3, i) for s in ("train", "val", "test")
+            for i in fmt.load_manifest(extra3)["splits"][s]]
+    firsts = {ts[0] for r in recs for ts in r.descriptions.values() if ts}
+    rest = {t for r in recs for ts in r.descriptions.values() for t in ts[1:]} - firsts
+    assert firsts <= set(cache.index) and rest and not rest & set(cache.index)
+    main_texts = {t for i in fmt.load_manifest(data)["splits"]["train"]
+                  for ts in fmt.load_record(data, i).descriptions.values() for t in ts}
+    assert main_texts <= set(cache.index)
+    with pytest.raises(ValueError, match="same --extra-wordings"):
+        main(base[:-1] + [str(run1), "--extra-train", str(extra3), "--steps", "3", "--resume"])
 
 
 def test_own_inputs_feed_back_the_networks_teacher_forced_predictions(trained, tmp_path):

@@ -3,7 +3,7 @@
     artformer train transformer --data data/prepared/v1 --prior model/weights/prior_small.pt \
         --sdf model/weights/sdf_small.pt --preset small --out runs/transformer_small \
         [--resume] [--ablation none|no_tpe|one_codebook|no_shape_prior] [--steps N] [--minutes M] \
-        [--extra-train data/prepared/v1x ...]     # more objects (all splits) for training
+        [--extra-train data/prepared/v1x ... [--extra-wordings N]]   # more training objects
     artformer train transformer --eval runs/transformer_small/transformer.pt \
         --data data/prepared/v1 --split test      # structure-alignment figure of a checkpoint
 """
@@ -36,6 +36,10 @@ def _parser() -> argparse.ArgumentParser:
                     help="another prepared dataset (own data version) whose objects, all "
                          "splits, are added to the training set (repeatable); validation "
                          "stays --data's val split")
+    ap.add_argument("--extra-wordings", type=int, default=0, metavar="N",
+                    help="keep only the first N wordings of each description length of the "
+                         "--extra-train objects (fewer text states to encode and cache; "
+                         "default 0 = all)")
     ap.add_argument("--ablation", default="none", choices=ABLATIONS)
     ap.add_argument("--steps", type=int, help="override max_steps")
     ap.add_argument("--minutes", type=float, help="override the wall-clock budget (0 = none)")
@@ -108,6 +112,7 @@ def main(argv: list[str]) -> int:
     path = train(RunConfig(data=args.data, out=args.out, net=net_cfg, train=tc, targets=targets,
                            resume=args.resume, init=args.init, ablation=args.ablation,
                            command=command, extra=list(args.extra_train),
+                           extra_wordings=args.extra_wordings,
                            progress=not args.no_progress))
     if args.half:
         from .checkpoint import build_network, read_checkpoint, save_checkpoint

@@ -134,19 +134,23 @@ def prepare_data(data_root: str, targets, *, predict_z: bool = False,
 
 def extra_training_items(data: PreparedData, root: str, prefix: str, targets, *,
                          predict_z: bool = False, cache_dir: Optional[str] = None,
-                         progress: bool = True) -> tuple[list[TreeItem], str]:
+                         progress: bool = True, wordings: int = 0) -> tuple[list[TreeItem], str]:
     """Every object of another prepared dataset (all three splits) as training items, its
     ids prefixed with ``prefix`` and its tokens normalised with ``data``'s stats and label
     table, so the network trained on ``data`` reads them the same way. Its data version
     must differ from ``data``'s (the same objects twice would leak validation objects into
-    training). -> (items, its data version)."""
+    training). ``wordings`` > 0 keeps only the first that many wordings of every description
+    length (fewer text-encoder states to cache; 0 = all). -> (items, its data version)."""
     xd = prepare_data(root, targets, predict_z=predict_z, splits=("train", "val", "test"),
                       cache_dir=cache_dir, stats=data.stats, label_table=data.label_table,
                       progress=progress)
     if xd.data_version == data.data_version:
         raise ValueError(f"extra data {root} has the main data's version "
                          f"{data.data_version!r}; extra objects need their own version")
-    items = [replace(it, id=prefix + it.id)
+    if wordings < 0:
+        raise ValueError(f"wordings must be >= 0 (0 = all), got {wordings}")
+    items = [replace(it, id=prefix + it.id,
+                     texts=[g[:wordings] for g in it.texts] if wordings else it.texts)
              for s in ("train", "val", "test") for it in xd.items[s]]
     return items, xd.data_version
 
@@ -250,6 +254,7 @@ class RunConfig:
     command: str = ""
     progress: bool = True
     extra: list = field(default_factory=list)   # more prepared datasets, all splits to train
+    extra_wordings: int = 0          # wordings per description length kept for them (0 = all)
 
 
 @torch.no_grad()
@@ -309,9 +314,10 @@ def train(rc: RunConfig) -> Path:
         items, version = extra_training_items(data, root, f"x{j}:", view,
                                               predict_z=cfg.predict_z,
                                               cache_dir=str(out / "cache"),
-                                              progress=rc.progress)
+                                              progress=rc.progress, wordings=rc.extra_wordings)
         tr = tr + items
-        extra_info.append({"data": str(root), "data_version": version, "objects": len(items)})
+        extra_info.append({"data": str(root), "data_version": version, "objects": len(items),
+                           "wordings": rc.extra_wordings or "all"})
     log.info("data %s: %d train / %d val objects, %d train rounds, %d labels%s",
              data.data_version, len(tr), len(va), len(all_samples(tr)),
              len(data.label_table["labels"]),
@@ -347,10 +353,11 @@ def train(rc: RunConfig) -> Path:
         if ck["config"] != asdict(cfg):
             raise ValueError(f"{last} was trained with another config; drop --resume or use "
                              f"another --out")
-        had = [x["data_version"] for x in ck.get("extra_train", [])]
-        if had != [x["data_version"] for x in extra_info]:
-            raise ValueError(f"{last} was trained with extra data {had or 'none'}; resume it "
-                             f"with the same --extra-train folders, in the same order")
+        had = [(x["data_version"], x.get("wordings", "all")) for x in ck.get("extra_train", [])]
+        if had != [(x["data_version"], x["wordings"]) for x in extra_info]:
+            raise ValueError(f"{last} was trained with extra data {had or 'none'} (data "
+                             f"version, wordings); resume it with the same --extra-train "
+                             f"folders, in the same order, and the same --extra-wordings")
         net.load_state_dict(ck["state_dict"])
         opt.load_state_dict(ck["optimizer"])
         step = int(ck["step"])
