@@ -136,7 +136,7 @@ class Attention(nn.Module):
         q = self.q(x).view(B, N, self.h, dh).transpose(1, 2)               # (B, h, N, dh)
         k, v = self.kv(mem).view(U, L, 2, self.h, dh).permute(2, 0, 3, 1, 4)  # (U, h, L, dh) x2
         if kv_index is not None:
-            k, v = k.index_select(0, kv_index), v.index_select(0, kv_index)   # (B, h, L, dh)
+            k, v = k[kv_index], v[kv_index]                                # (B, h, L, dh)
         o = F.scaled_dot_product_attention(q, k, v, attn_mask=mem_mask[:, None, None, :],
                                            dropout_p=self.dropout if self.training else 0.0)
         return self.out(o.transpose(1, 2).reshape(B, N, d))
