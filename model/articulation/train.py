@@ -141,14 +141,14 @@ def extra_training_items(data: PreparedData, root: str, prefix: str, targets, *,
     must differ from ``data``'s (the same objects twice would leak validation objects into
     training). ``wordings`` > 0 keeps only the first that many wordings of every description
     length (fewer text-encoder states to cache; 0 = all). -> (items, its data version)."""
+    if wordings < 0:
+        raise ValueError(f"wordings must be >= 0 (0 = all), got {wordings}")
     xd = prepare_data(root, targets, predict_z=predict_z, splits=("train", "val", "test"),
                       cache_dir=cache_dir, stats=data.stats, label_table=data.label_table,
                       progress=progress)
     if xd.data_version == data.data_version:
         raise ValueError(f"extra data {root} has the main data's version "
                          f"{data.data_version!r}; extra objects need their own version")
-    if wordings < 0:
-        raise ValueError(f"wordings must be >= 0 (0 = all), got {wordings}")
     items = [replace(it, id=prefix + it.id,
                      texts=[g[:wordings] for g in it.texts] if wordings else it.texts)
              for s in ("train", "val", "test") for it in xd.items[s]]

@@ -282,7 +282,8 @@ def train_image(rc: ImageRunConfig) -> Path:
         cfg.cond_dims = {**cfg.cond_dims, "image": encoder.dim}
     grid = {k: v for k, v in cfg.cond_grid.items() if k != "image"}
     cfg.cond_grid = {**grid, "image": list(GRID)} if ic.positions else grid
-    data = prepare_data(rc.data, _CodebookView(rc.targets, cfg), predict_z=cfg.predict_z,
+    view = _CodebookView(rc.targets, cfg)
+    data = prepare_data(rc.data, view, predict_z=cfg.predict_z,
                         cache_dir=str(out / "cache"),
                         stats=None if init is None else init["stats"],
                         label_table=None if init is None or not same_targets else init["label_table"])
@@ -298,7 +299,6 @@ def train_image(rc: ImageRunConfig) -> Path:
     if len(tr) < len(tr_all):
         log.warning("%d of %d train objects have no renders and are skipped",
                     len(tr_all) - len(tr), len(tr_all))
-    view = _CodebookView(rc.targets, cfg)
     extra, extra_info = _extra_items(rc, data, view, cfg.predict_z, out / "cache")
     t0 = time.time()
 
