@@ -10,12 +10,18 @@ exported object folder per sample, ``sample_<k>/`` (URDF, meshes/, metadata.json
 is created with two marker files: ``.artformer_output`` (it is ours: only such folders are ever deleted) and
 ``.partial`` (removed last, when everything is written). Folders still marked partial are
 not results: they are removed on abandon and at the next start. A shutdown never interrupts
-an export, so after a clean stop no partial folder exists. With the ``preview`` parameter,
-``preview.png`` is drawn into each sample folder after the answer is published, when no
-request is waiting, and put off again (between its three views) when one arrives (the
-result names its path; the file appears atomically a moment later, or not at all if the
-node stops first, retention removes the folder, or a burst pushes it out of the two newest
-pending pictures).
+an export, so after a clean stop no partial folder exists.
+
+Requests that arrive while the model loads wait in the same bounded queue (full: 'rejected'
+at once) and are served when it is ready; if the load fails, each gets the reason.
+
+Every path in an answer exists when the answer is published (the folder just written is
+never a retention victim). With the ``preview`` parameter, ``preview.png`` is drawn into each
+sample folder after the answer is published, when no request is waiting, and put off again
+(between its three views) when one arrives; the answer's ``preview_path`` is therefore null,
+and ``result.json`` in the request folder names the picture once it is written (atomically).
+A picture may never come: the node stops first, retention removes the folder, or a burst
+pushes it out of the two newest pending pictures.
 """
 from __future__ import annotations
 
@@ -81,6 +87,11 @@ def answer(job_or_id: Job | str, status: str, message: str, *, kind: str = "text
         rid = job_or_id
     return {"id": rid, "status": status, "kind": kind, "prompt": prompt, "message": message,
             **extra}
+
+
+def _existing(path: Optional[str]) -> Optional[str]:
+    """``path`` if it names an existing file, else None (an answer names no missing file)."""
+    return path if path and os.path.isfile(path) else None
 
 
 def _write_atomic(path: str, text: str) -> None:
@@ -172,11 +183,22 @@ class GenerationService:
 
     def _load(self) -> None:
         t0 = time.monotonic()
+        log.info("loading the %s backend", self.settings.backend)
         try:
             backend = self._load_backend()
         except Exception as err:  # the node keeps answering: every request gets this reason
-            log.error("model failed to load: %s: %s", type(err).__name__, err)
-            self._set_state(FAILED, f"model failed to load: {type(err).__name__}: {err}")
+            message = f"model failed to load: {type(err).__name__}: {err}"
+            with self._cond:
+                if self._state == STOPPING:   # stop() already answered the queue
+                    return
+                self._state, self._state_message = FAILED, message
+                waiting = list(self._queue)
+                self._queue.clear()
+                self._cond.notify_all()
+            log.error("%s", message)
+            self._on_state(FAILED, message)
+            for job in waiting:
+                self._safe_emit(answer(job, "error", message), None)
             return
         self._backend = backend
         self._set_state(READY, f"backend '{backend.name}' ready (loaded in "
@@ -223,7 +245,7 @@ class GenerationService:
         """Queue a job; answer it at once (and return False) if it cannot be queued."""
         with self._cond:
             state, message = self._state, self._state_message
-            if state == READY:
+            if state in (READY, LOADING):     # while loading, requests wait for the model
                 limit = self.settings.queue_size
                 if len(self._queue) >= limit:
                     result = answer(job, "rejected", f"rejected: queue full ({limit} requests "
@@ -231,10 +253,10 @@ class GenerationService:
                 else:
                     self._queue.append(job)
                     self._cond.notify_all()
+                    if state == LOADING:
+                        log.info("request %s waits for the model (%d queued)",
+                                 job.request_id, len(self._queue))
                     return True
-            elif state == LOADING:
-                result = answer(job, "error", "model still loading; try again when the status "
-                                              "topic says 'ready'")
             elif state == FAILED:
                 result = answer(job, "error", message)
             else:
@@ -252,6 +274,8 @@ class GenerationService:
     def _work(self) -> None:
         with self._cond:
             self._cond.wait_for(lambda: self._state != LOADING)
+            if self._state != READY:   # failed load (queue answered by _load) or stopping
+                return
         while True:
             with self._cond:
                 # requests first; previews only when no request waits
@@ -284,17 +308,35 @@ class GenerationService:
         """preview.png of a published request, drawn when the queue is empty and interrupted
         (between its views) when a request arrives: the picture is for people and holds up a
         request by one view at most. Written atomically; skipped when stopping or when
-        retention already removed the folder. False = interrupted, to be drawn later."""
+        retention already removed the folder. False = interrupted, to be drawn later. Once
+        written, the request's result.json names it."""
         with self._export_lock:
             if self._state == STOPPING or not os.path.isdir(exp.out_dir):
                 return True
             try:
                 done = self._backend.preview(
                     out, exp, interrupt=lambda: bool(self._queue) or self._state == STOPPING)
-                return done is not None or self._state == STOPPING
             except Exception as err:  # a picture must never cost the node
                 log.warning("preview of %s failed: %s", exp.out_dir, err)
                 return True
+            if done is not None:
+                self._record_preview(exp.out_dir, str(done))
+            return done is not None or self._state == STOPPING
+
+    def _record_preview(self, sample_dir: str, path: str) -> None:
+        """Name a written preview in result.json (the answer itself went out without it)."""
+        result_path = os.path.join(os.path.dirname(sample_dir), RESULT_FILE)
+        try:
+            with open(result_path, encoding="utf-8") as f:
+                result = json.load(f)
+            for k, sample in enumerate(result.get("samples", [])):
+                if sample.get("output_dir") == sample_dir:
+                    sample["preview_path"] = path
+                    if k == 0:
+                        result["preview_path"] = path
+            _write_atomic(result_path, result_to_json(result))
+        except (OSError, ValueError) as err:
+            log.warning("could not record the preview %s in %s: %s", path, result_path, err)
 
     def _seed_for(self, job: Job) -> int:
         if job.seed is not None:
@@ -334,8 +376,7 @@ class GenerationService:
                     target = os.path.join(folder, f"sample_{k}")
                     exports.append(self._backend.export(out, target))
                     if self.settings.preview and hasattr(self._backend, "preview"):
-                        exports[-1].preview_path = os.path.join(exports[-1].out_dir, "preview.png")
-                        self._previews.append((out, exports[-1]))
+                        self._previews.append((out, exports[-1]))   # drawn after the answer
                 # under sustained load keep only the newest pending pictures: each holds its
                 # object's meshes (tens of MB), and the node's memory must stay bounded
                 del self._previews[:max(0, len(self._previews) - MAX_PENDING_PREVIEWS)]
@@ -357,7 +398,7 @@ class GenerationService:
                 del self._previews[pending:]
                 shutil.rmtree(folder, ignore_errors=True)
                 raise
-            self._apply_retention()
+            self._apply_retention(keep=folder)
         return result, urdf
 
     def _new_folder(self, job: Job) -> str:
@@ -372,9 +413,13 @@ class GenerationService:
             json.dump({"id": job.request_id}, f)
         return path
 
-    def _apply_retention(self) -> None:
+    def _apply_retention(self, keep: str) -> None:
+        """Delete the oldest complete folders beyond ``retention``; never ``keep`` (the one
+        just written, whose answer is about to go out), even if its name sorts first (a
+        clock set back)."""
         complete, _ = owned_folders(self._root)
-        for path in complete[:max(0, len(complete) - self.settings.retention)]:
+        others = [p for p in complete if p != keep]
+        for path in others[:max(0, len(others) + 1 - self.settings.retention)]:
             log.info("retention: removing %s", path)
             shutil.rmtree(path, ignore_errors=True)
 
@@ -384,8 +429,8 @@ class GenerationService:
         for out, exp in zip(outs, exports):
             samples.append({"seed": getattr(out, "seed", seed), "output_dir": exp.out_dir,
                             "urdf_path": exp.urdf_path, "mesh_paths": dict(exp.mesh_paths),
-                            "metadata_path": exp.metadata_path,
-                            "preview_path": exp.preview_path,
+                            "metadata_path": _existing(exp.metadata_path),
+                            "preview_path": _existing(exp.preview_path),
                             "stage_timings": dict(getattr(out, "timings", {}) or {})})
         first = samples[0]
         return {"id": job.request_id, "status": "done", "kind": job.kind, "prompt": job.prompt,

@@ -1,4 +1,5 @@
 """GenerationService (queue, worker, folders, stop) with a scripted in-process backend."""
+import json
 import os
 import threading
 import time
@@ -97,30 +98,45 @@ def test_done_result_writes_a_complete_folder(tmp_path):
     assert h.svc.stop(1)
 
 
-def test_request_while_loading_gets_a_clear_error(tmp_path):
+def test_requests_during_the_load_wait_and_are_served_once_ready(tmp_path):
     gate = threading.Event()
-    h = Harness(tmp_path, load_gate=gate)
+    h = Harness(tmp_path, load_gate=gate, queue_size=2)
     h.svc.start()
-    assert not h.svc.submit(Job("early", "text", text="x"))
+    assert h.svc.state == "loading"
+    accepted = [h.svc.submit(Job(f"early{i}", "text", text="x")) for i in range(3)]
+    assert accepted == [True, True, False]     # the bounded queue applies while loading too
     (res, urdf), = h.wait_answers(1)
-    assert res["status"] == "error" and "still loading" in res["message"] and urdf is None
+    assert res["id"] == "early2" and res["status"] == "rejected" and "queue full" in res["message"]
+    time.sleep(0.1)
+    assert len(h.answers) == 1 and h.svc.queue_length() == 2   # no answer before the model
     gate.set()
     assert h.svc.wait_ready(5)
-    assert h.svc.submit(Job("late", "text", text="x"))
-    h.wait_answers(2)
-    assert h.by_id()["late"][0]["status"] == "done"
+    h.wait_answers(3)
+    ids = h.by_id()
+    for rid in ("early0", "early1"):
+        res, urdf = ids[rid]
+        assert res["status"] == "done" and urdf == URDF and os.path.isfile(res["urdf_path"])
+        assert res["timings"]["queue_wait"] >= 0.1          # waited for the model
     h.svc.stop(1)
 
 
 def test_failed_load_answers_every_request_with_the_reason(tmp_path):
-    h = Harness(tmp_path, load_error=FileNotFoundError("no checkpoint at /nowhere"))
+    gate = threading.Event()
+    h = Harness(tmp_path, load_gate=gate,
+                load_error=FileNotFoundError("no checkpoint at /nowhere"))
     h.svc.start()
+    assert h.svc.submit(Job("queued", "text", text="x"))     # waits for the load ...
+    gate.set()
     assert not h.svc.wait_ready(5)
     assert h.svc.state == FAILED
-    h.svc.submit(Job("r", "text", text="x"))
-    (res, _), = h.wait_answers(1)
-    assert res["status"] == "error" and "/nowhere" in res["message"]
-    h.svc.stop(1)
+    h.svc.submit(Job("r", "text", text="x"))                 # ... and after the failure
+    answers = h.wait_answers(2)
+    assert sorted(r["id"] for r, _ in answers) == ["queued", "r"]
+    for res, urdf in answers:
+        assert res["status"] == "error" and urdf is None
+        assert res["message"] == ("model failed to load: FileNotFoundError: no checkpoint at "
+                                  "/nowhere")
+    assert h.svc.stop(1)
 
 
 def test_full_queue_rejects_at_once_and_every_request_is_answered(tmp_path):
@@ -280,8 +296,8 @@ def test_previews_follow_the_answer_and_wait_for_queued_requests(tmp_path):
     assert h.backend.started.wait(5)
     h.backend.gate.set()
     answers = h.wait_answers(3)
-    for res, _ in answers:   # every answer names its preview before the picture exists
-        assert res["preview_path"].endswith(os.path.join("sample_0", "preview.png"))
+    for res, _ in answers:   # the picture does not exist yet: the answer does not name it
+        assert res["preview_path"] is None and res["samples"][0]["preview_path"] is None
     end = time.monotonic() + 5
     while len(h.backend.events) < 5 and time.monotonic() < end:
         time.sleep(0.01)
@@ -290,7 +306,26 @@ def test_previews_follow_the_answer_and_wait_for_queued_requests(tmp_path):
     # empty, for the newest MAX_PENDING_PREVIEWS (2) requests only: memory stays bounded
     assert h.backend.events == [("generate", "p0"), ("generate", "p1"), ("generate", "p2"),
                                 ("preview", "p1"), ("preview", "p2")]
-    assert [os.path.isfile(r["preview_path"]) for r, _ in answers] == [False, True, True]
+    # result.json names a picture once it is written (and only then)
+    saved = [json.load(open(os.path.join(r["output_dir"], RESULT_FILE))) for r, _ in answers]
+    assert saved[0]["preview_path"] is None
+    for doc in saved[1:]:
+        assert os.path.isfile(doc["preview_path"])
+        assert doc["samples"][0]["preview_path"] == doc["preview_path"]
+        assert doc["preview_path"].endswith(os.path.join("sample_0", "preview.png"))
+    assert h.svc.stop(1)
+
+
+def test_retention_never_deletes_the_folder_of_the_answer_going_out(tmp_path):
+    h = Harness(tmp_path, retention=1)
+    newer = tmp_path / "out" / "99991231T235959.999Z_99999_from-the-future"
+    newer.mkdir(parents=True)                  # sorts after anything written today
+    (newer / OWNER_MARKER).write_text("{}")
+    h.svc.start()
+    assert h.svc.wait_ready(5)
+    h.svc.submit(Job("now", "text", text="x"))
+    (res, _), = h.wait_answers(1)
+    assert os.path.isfile(res["urdf_path"]) and not newer.exists()
     assert h.svc.stop(1)
 
 
