@@ -8,6 +8,7 @@ import sys
 # (words...) -> module with `main(argv: list[str]) -> int`; argv keeps the route words.
 ROUTES: dict[tuple[str, ...], tuple[str, str]] = {
     ("export",): ("model.export.commands", "export the built-in example object(s) to URDF folders"),
+    ("convert",): ("model.export.convert", "convert an object folder to MJCF / USD / a ROS package"),
     ("data", "render"): ("model.imaging.commands", "render dataset objects for image conditioning"),
     ("data", "partmaps"): ("model.imaging.commands", "part-centre maps of the rendered views"),
     ("data", "features"): ("model.imaging.commands", "cache encoder features of the rendered views"),
