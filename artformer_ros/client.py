@@ -53,7 +53,7 @@ class GeneratorClient:
         from sensor_msgs.msg import Image
         from std_msgs.msg import String
 
-        from artformer_ros.generator_node import (IMAGE_REQUESTS, LATCHED, RESULTS,
+        from artformer_ros.generator_node import (IMAGE_PUBLISHER, LATCHED, RESULTS,
                                                   TEXT_REQUESTS)
 
         self._context = context
@@ -76,7 +76,7 @@ class GeneratorClient:
                 String, "robot_description",
                 lambda m: self.descriptions.append((time.monotonic(), m.data)), LATCHED)
         self.text_pub = self.node.create_publisher(String, "text_request", TEXT_REQUESTS)
-        self.image_pub = self.node.create_publisher(Image, "image_request", IMAGE_REQUESTS)
+        self.image_pub = self.node.create_publisher(Image, "image_request", IMAGE_PUBLISHER)
         self._String = String
 
     # -- plumbing -------------------------------------------------------------------------

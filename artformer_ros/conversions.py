@@ -4,9 +4,11 @@
 * ``parse_text_request``    bytes of a text request -> ``TextRequest`` (or ``RequestError``)
 * ``image_to_rgb``          sensor_msgs/Image (anything with its fields) -> (H, W, 3) uint8 RGB
 * ``result_to_json``        result dict -> strict JSON text (no NaN, no numpy types)
-* ``markers_from_urdf``     URDF text -> visualization_msgs/MarkerArray of MESH_RESOURCE markers
+* ``markers_at`` / ``markers_from_urdf``  mesh visuals (of a URDF) + posed link frames ->
+                            visualization_msgs/MarkerArray of MESH_RESOURCE markers, one frame
+* ``joint_state``           joint names + positions -> sensor_msgs/JointState
 
-Message classes (``visualization_msgs``, ``geometry_msgs``) are plain rosidl Python types;
+Message classes (``visualization_msgs``, ``sensor_msgs``) are plain rosidl Python types;
 building them needs no ROS context, so all of this is unit-tested without a node.
 """
 from __future__ import annotations
@@ -209,15 +211,6 @@ _PALETTE = [(0.80, 0.80, 0.82), (0.90, 0.55, 0.25), (0.30, 0.60, 0.90), (0.40, 0
             (0.85, 0.35, 0.45), (0.65, 0.50, 0.85), (0.95, 0.80, 0.30), (0.35, 0.80, 0.80)]
 
 
-def rpy_to_quaternion(roll: float, pitch: float, yaw: float) -> tuple[float, float, float, float]:
-    """URDF fixed-axis roll/pitch/yaw -> quaternion (x, y, z, w)."""
-    cr, sr = math.cos(roll / 2), math.sin(roll / 2)
-    cp, sp = math.cos(pitch / 2), math.sin(pitch / 2)
-    cy, sy = math.cos(yaw / 2), math.sin(yaw / 2)
-    return (sr * cp * cy - cr * sp * sy, cr * sp * cy + sr * cp * sy,
-            cr * cp * sy - sr * sp * cy, cr * cp * cy + sr * sp * sy)
-
-
 def _floats(text: Optional[str], n: int, default: float) -> list[float]:
     if not text:
         return [default] * n
@@ -265,31 +258,74 @@ def mesh_visuals(urdf_xml: str) -> list[dict]:
     return out
 
 
-def markers_from_urdf(urdf_xml: str, *, namespace: str = "artformer", alpha: float = 1.0):
-    """MarkerArray for RViz: a DELETEALL (clears the previous object), then one MESH_RESOURCE
-    marker per mesh visual, in the frame of its link (``frame_id`` = link name, stamp 0 =
-    latest TF, ``frame_locked`` so markers follow the joints through robot_state_publisher's
-    TF). Pose = the visual's origin, scale = the mesh scale, colour = the URDF material
-    (a palette colour when it has none)."""
+def matrix_to_quaternion(R) -> tuple[float, float, float, float]:
+    """Rotation part of a 3x3 or 4x4 matrix -> unit quaternion (x, y, z, w), w >= 0."""
+    m = np.asarray(R, dtype=np.float64)[:3, :3]
+    tr = m[0, 0] + m[1, 1] + m[2, 2]
+    # Shepperd: divide by the largest of the four candidates for numerical safety
+    if tr > max(m[0, 0], m[1, 1], m[2, 2]):
+        w = math.sqrt(max(1.0 + tr, 0.0)) / 2
+        x, y, z = (m[2, 1] - m[1, 2]) / (4 * w), (m[0, 2] - m[2, 0]) / (4 * w), \
+            (m[1, 0] - m[0, 1]) / (4 * w)
+    elif m[0, 0] >= m[1, 1] and m[0, 0] >= m[2, 2]:
+        x = math.sqrt(max(1.0 + m[0, 0] - m[1, 1] - m[2, 2], 0.0)) / 2
+        w, y, z = (m[2, 1] - m[1, 2]) / (4 * x), (m[0, 1] + m[1, 0]) / (4 * x), \
+            (m[0, 2] + m[2, 0]) / (4 * x)
+    elif m[1, 1] >= m[2, 2]:
+        y = math.sqrt(max(1.0 - m[0, 0] + m[1, 1] - m[2, 2], 0.0)) / 2
+        w, x, z = (m[0, 2] - m[2, 0]) / (4 * y), (m[0, 1] + m[1, 0]) / (4 * y), \
+            (m[1, 2] + m[2, 1]) / (4 * y)
+    else:
+        z = math.sqrt(max(1.0 - m[0, 0] - m[1, 1] + m[2, 2], 0.0)) / 2
+        w, x, y = (m[1, 0] - m[0, 1]) / (4 * z), (m[0, 2] + m[2, 0]) / (4 * z), \
+            (m[1, 2] + m[2, 1]) / (4 * z)
+    q = np.array([x, y, z, w])
+    q /= np.linalg.norm(q)
+    return tuple(float(v) for v in (q if q[3] >= 0 else -q))
+
+
+def visual_matrix(vis: dict) -> np.ndarray:
+    """4x4 of a visual's origin in its link frame (a ``mesh_visuals`` entry)."""
+    from artformer_ros.kinematics import origin_matrix
+
+    return origin_matrix(vis["xyz"], vis["rpy"])
+
+
+def markers_at(visuals: list[dict], link_poses: dict, *, frame_id: str = "world",
+               stamp=None, clear: bool = True, namespace: str = "artformer",
+               alpha: float = 1.0):
+    """MarkerArray for RViz, everything in the one fixed frame ``frame_id``: a DELETEALL
+    first when ``clear`` (a new object replaces the previous one), then one MESH_RESOURCE
+    marker per mesh visual at ``link_poses[link] @ visual origin`` (``link_poses``: link ->
+    4x4 posed link frame in the object frame, e.g. ``ObjectPose.link_poses``). Scale = the
+    mesh scale, colour = the URDF material (a palette colour when it has none). ``stamp`` is a
+    builtin_interfaces/Time (None: 0, RViz then draws the latest). Marker ids are the visual
+    indices, so re-publishing a new pose modifies the markers in place."""
     from visualization_msgs.msg import Marker, MarkerArray
 
     arr = MarkerArray()
-    clear = Marker()
-    clear.ns = namespace
-    clear.action = Marker.DELETEALL
-    arr.markers.append(clear)
-    for i, vis in enumerate(mesh_visuals(urdf_xml)):
+    if clear:
+        wipe = Marker()
+        wipe.header.frame_id = frame_id
+        wipe.ns = namespace
+        wipe.action = Marker.DELETEALL
+        arr.markers.append(wipe)
+    for i, vis in enumerate(visuals):
+        if vis["link"] not in link_poses:
+            raise ValueError(f"no pose for link {vis['link']!r}")
+        T = np.asarray(link_poses[vis["link"]]) @ visual_matrix(vis)     # (4, 4)
         m = Marker()
-        m.header.frame_id = vis["link"]
+        m.header.frame_id = frame_id
+        if stamp is not None:
+            m.header.stamp = stamp
         m.ns = namespace
         m.id = i
         m.type = Marker.MESH_RESOURCE
         m.action = Marker.ADD
         m.mesh_resource = vis["uri"]
         m.mesh_use_embedded_materials = False
-        m.frame_locked = True
-        m.pose.position.x, m.pose.position.y, m.pose.position.z = vis["xyz"]
-        qx, qy, qz, qw = rpy_to_quaternion(*vis["rpy"])
+        m.pose.position.x, m.pose.position.y, m.pose.position.z = (float(v) for v in T[:3, 3])
+        qx, qy, qz, qw = matrix_to_quaternion(T)
         m.pose.orientation.x, m.pose.orientation.y = qx, qy
         m.pose.orientation.z, m.pose.orientation.w = qz, qw
         m.scale.x, m.scale.y, m.scale.z = vis["scale"]
@@ -297,3 +333,23 @@ def markers_from_urdf(urdf_xml: str, *, namespace: str = "artformer", alpha: flo
         m.color.r, m.color.g, m.color.b, m.color.a = r, g, b, a * float(alpha)
         arr.markers.append(m)
     return arr
+
+
+def markers_from_urdf(urdf_xml: str, link_poses: dict, **kwargs):
+    """``markers_at`` for the mesh visuals of a URDF text (see there for the keywords)."""
+    return markers_at(mesh_visuals(urdf_xml), link_poses, **kwargs)
+
+
+def joint_state(names: list[str], positions: list[float], stamp=None):
+    """sensor_msgs/JointState with names and positions (velocity and effort left empty, as
+    joint_state_publisher does for a pose that is set, not measured)."""
+    from sensor_msgs.msg import JointState
+
+    if len(names) != len(positions):
+        raise ValueError(f"{len(names)} joint names but {len(positions)} positions")
+    msg = JointState()
+    if stamp is not None:
+        msg.header.stamp = stamp
+    msg.name = list(names)
+    msg.position = [float(p) for p in positions]
+    return msg

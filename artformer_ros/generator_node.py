@@ -3,15 +3,21 @@
 Topics (relative names, remappable):
   sub  text_request       std_msgs/String     plain text, or JSON {"text", "id"?, "seed"?}
   sub  image_request      sensor_msgs/Image   rgb8 | bgr8 | rgba8 | bgra8 | mono8;
-                                              request id = header.frame_id (else image-<n>)
+                                              request id = header.frame_id (else image-<n>);
+                                              best effort: matches camera drivers and
+                                              reliable publishers alike
   pub  robot_description  std_msgs/String     latest URDF (RELIABLE + TRANSIENT_LOCAL, depth 1)
   pub  mesh_paths         std_msgs/String     JSON {id, output_dir, urdf_path, mesh_paths} (latched)
-  pub  markers            visualization_msgs/MarkerArray   meshes per link for RViz (latched)
+  pub  markers            visualization_msgs/MarkerArray   the latest object's meshes in the
+                                              fixed frame `frame_id`, posed at `openness` (latched)
+  pub  joint_states       sensor_msgs/JointState  its movable joints at the same openness
   pub  generation_result  std_msgs/String     JSON per request: status done | error | rejected
   pub  status             std_msgs/String     JSON {state: loading|ready|failed|stopping} (latched)
 
 The subscription callbacks only validate and queue (``GenerationService``); generation runs on
-its worker thread. SIGINT / SIGTERM stop the node cleanly with exit code 0.
+its worker thread. Requests that arrive during the model load wait in the queue. Every Python
+log line (core and node) goes through the node's logger to /rosout. SIGINT / SIGTERM stop
+the node cleanly with exit code 0.
 """
 from __future__ import annotations
 
@@ -21,6 +27,7 @@ import os
 import signal
 import sys
 import threading
+import time
 from functools import partial
 from typing import Callable, Optional
 
@@ -32,14 +39,16 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
-from sensor_msgs.msg import Image
+from sensor_msgs.msg import Image, JointState
 from std_msgs.msg import String
 from visualization_msgs.msg import MarkerArray
 
 from artformer_ros.conversions import (MAX_ID_LENGTH, RequestError, decode_cdr_string,
-                                       image_to_rgb, markers_from_urdf, parse_text_request,
-                                       result_to_json)
+                                       image_to_rgb, joint_state, markers_at, mesh_visuals,
+                                       parse_text_request, result_to_json)
+from artformer_ros.kinematics import ObjectPose, sweep
 from artformer_ros.params import PARAMS, NodeSettings, ParamSpec, validate
+from artformer_ros.rosout import route_python_logging
 from artformer_ros.service import GenerationService, Job, answer
 
 NODE_NAME = "artformer_generator"
@@ -55,8 +64,20 @@ RESULTS = QoSProfile(depth=1000, history=HistoryPolicy.KEEP_LAST,
 # Transport buffers of the requests; admission control is the node's own queue_size.
 TEXT_REQUESTS = QoSProfile(depth=1000, history=HistoryPolicy.KEEP_LAST,
                            reliability=ReliabilityPolicy.RELIABLE)
+# Images: best effort (sensor-data QoS) so that camera drivers' best-effort streams match as
+# well as reliable publishers; a lost image is a request never made, not a lost answer.
 IMAGE_REQUESTS = QoSProfile(depth=16, history=HistoryPolicy.KEEP_LAST,
-                            reliability=ReliabilityPolicy.RELIABLE)
+                            reliability=ReliabilityPolicy.BEST_EFFORT,
+                            durability=DurabilityPolicy.VOLATILE)
+# What our own clients publish images with (reliable: delivered unless the reader is gone).
+IMAGE_PUBLISHER = QoSProfile(depth=16, history=HistoryPolicy.KEEP_LAST,
+                             reliability=ReliabilityPolicy.RELIABLE)
+# joint_state_publisher's convention, which robot_state_publisher subscribes with.
+JOINT_STATES = QoSProfile(depth=10, history=HistoryPolicy.KEEP_LAST,
+                          reliability=ReliabilityPolicy.RELIABLE,
+                          durability=DurabilityPolicy.VOLATILE)
+# Parameters that change how the current object is shown.
+_VIEW_PARAMS = ("frame_id", "openness", "animate", "animate_period")
 
 
 def _descriptor(spec: ParamSpec) -> ParameterDescriptor:
@@ -79,10 +100,16 @@ def _descriptor(spec: ParamSpec) -> ParameterDescriptor:
 class GeneratorNode(Node):
     """Plumbing only: parameters, topics, message conversion; the work is in the service."""
 
-    def __init__(self, load_backend: Optional[Callable] = None, **node_kwargs):
+    def __init__(self, load_backend: Optional[Callable] = None, *,
+                 route_logging: bool = False, **node_kwargs):
+        """``route_logging``: send every Python log record of the process through this
+        node's logger to /rosout (what ``main`` does; undone by ``destroy_node``)."""
         super().__init__(NODE_NAME, **node_kwargs)
         self._pub_lock = threading.Lock()
         self._counters = {"text": 0, "image": 0}
+        self._unroute_logging: Optional[Callable[[], None]] = None
+        self._shown = None              # (ObjectPose, mesh visuals) of the latest object
+        self._sweep_start = time.monotonic()
         self.add_on_set_parameters_callback(self._check_parameters)
         for spec in PARAMS:   # the callback above also vets the initial (-p / YAML) values
             self.declare_parameter(spec.name, spec.default, _descriptor(spec))
@@ -95,6 +122,8 @@ class GeneratorNode(Node):
         self._pub_markers = self.create_publisher(MarkerArray, "markers", LATCHED)
         self._pub_status = self.create_publisher(String, "status", LATCHED)
         self._pub_result = self.create_publisher(String, "generation_result", RESULTS)
+        self._pub_joints = self.create_publisher(JointState, "joint_states", JOINT_STATES)
+        self._timer = self.create_timer(1.0 / self.settings.publish_rate, self._tick)
 
         if load_backend is None:
             from artformer_ros.backends import load_backend as default_loader
@@ -104,10 +133,25 @@ class GeneratorNode(Node):
         # raw: rclpy would decode invalid UTF-8 with replacement characters; we check it.
         self.create_subscription(String, "text_request", self._on_text, TEXT_REQUESTS, raw=True)
         self.create_subscription(Image, "image_request", self._on_image, IMAGE_REQUESTS)
+        if route_logging:
+            self._unroute_logging = route_python_logging(self)
         self.get_logger().info(
             f"backend={self.settings.backend} output_dir={self.settings.output_path} "
             f"queue_size={self.settings.queue_size} retention={self.settings.retention}")
-        self.service.start()
+        try:
+            self.service.start()
+        except Exception:
+            self._restore_logging()
+            raise
+
+    def _restore_logging(self) -> None:
+        if self._unroute_logging is not None:
+            self._unroute_logging()
+            self._unroute_logging = None
+
+    def destroy_node(self) -> None:
+        self._restore_logging()
+        super().destroy_node()
 
     # -- parameters -----------------------------------------------------------------------
     def _check_parameters(self, params) -> SetParametersResult:
@@ -126,6 +170,14 @@ class GeneratorNode(Node):
                     else p.value
                 setattr(self.settings, p.name, value)
                 self.get_logger().info(f"parameter {p.name} = {value!r}")
+        names = {p.name for p in params}
+        if "publish_rate" in names:
+            self.destroy_timer(self._timer)
+            self._timer = self.create_timer(1.0 / self.settings.publish_rate, self._tick)
+        if "animate" in names and self.settings.animate:
+            self._sweep_start = time.monotonic()     # a sweep starts closed
+        if names & set(_VIEW_PARAMS):
+            self._show(clear=False)
 
     # -- requests -------------------------------------------------------------------------
     def _next_id(self, kind: str) -> str:
@@ -163,15 +215,21 @@ class GeneratorNode(Node):
     # -- outputs --------------------------------------------------------------------------
     def _emit(self, result: dict, urdf_xml: Optional[str]) -> None:
         """Publish one answer (called from the worker and from the subscription callbacks)."""
+        shown = None
+        if urdf_xml is not None:
+            try:   # the core's kinematics of the URDF just written (no meshes loaded)
+                shown = (ObjectPose.from_urdf(result["urdf_path"], urdf_xml),
+                         mesh_visuals(urdf_xml))
+            except Exception as err:   # markers are a courtesy; the result still goes out
+                self.get_logger().warning(f"no markers / joint_states for {result.get('id')}: "
+                                          f"{type(err).__name__}: {err}")
         with self._pub_lock:
             if urdf_xml is not None:
                 self._pub_description.publish(String(data=urdf_xml))
                 self._pub_meshes.publish(String(data=result_to_json(
                     {k: result.get(k) for k in ("id", "output_dir", "urdf_path", "mesh_paths")})))
-                try:
-                    self._pub_markers.publish(markers_from_urdf(urdf_xml))
-                except Exception as err:   # markers are a courtesy; the result still goes out
-                    self.get_logger().warning(f"no markers for {result.get('id')}: {err}")
+                self._shown = shown
+                self._show_locked(clear=True)
             self._pub_result.publish(String(data=result_to_json(result)))
         if result.get("status") == "done":
             self.get_logger().info(f"request {result['id']} done in "
@@ -179,6 +237,42 @@ class GeneratorNode(Node):
         else:
             self.get_logger().warning(f"request {result.get('id')} {result.get('status')}: "
                                       f"{result.get('message')}")
+
+    # -- the object in RViz ---------------------------------------------------------------
+    def current_openness(self) -> float:
+        if self.settings.animate:
+            return sweep(time.monotonic() - self._sweep_start, self.settings.animate_period)
+        return self.settings.openness
+
+    def _show(self, clear: bool) -> None:
+        with self._pub_lock:
+            self._show_locked(clear)
+
+    def _show_locked(self, clear: bool, markers: bool = True) -> None:
+        """Markers (unless ``markers`` is False) and joint_states of the latest object at the
+        current openness; ``clear`` = a new object (its markers replace the old ones)."""
+        if self._shown is None:
+            if clear:   # the new object cannot be shown: take the old one off the screen
+                self._pub_markers.publish(markers_at([], {}, frame_id=self.settings.frame_id))
+            return
+        pose, visuals = self._shown
+        openness = self.current_openness()
+        try:
+            if markers:
+                self._pub_markers.publish(markers_at(
+                    visuals, pose.link_poses(openness), frame_id=self.settings.frame_id,
+                    clear=clear))
+            names, positions = pose.joint_positions(openness)
+            self._pub_joints.publish(joint_state(names, positions,
+                                                 self.get_clock().now().to_msg()))
+        except Exception as err:   # never let the display cost an answer
+            self.get_logger().warning(f"cannot show the object: {type(err).__name__}: {err}")
+            self._shown = None
+
+    def _tick(self) -> None:
+        """joint_states at publish_rate; markers too while animating."""
+        with self._pub_lock:
+            self._show_locked(clear=False, markers=self.settings.animate)
 
     def flush(self, timeout: float = 1.0) -> None:
         """Wait (bounded) until reliable subscribers acknowledged the answers, so the last
@@ -207,7 +301,7 @@ def main(argv: Optional[list[str]] = None) -> int:
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: stop.set())
     try:
-        node = GeneratorNode()
+        node = GeneratorNode(route_logging=True)
     except (ParameterException, ValueError) as err:
         logging.getLogger("artformer_ros").error(f"invalid parameter: {err}")
         rclpy.try_shutdown()

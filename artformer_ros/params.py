@@ -65,6 +65,16 @@ PARAMS: tuple[ParamSpec, ...] = (
               int_range=(1, 100_000_000)),
     ParamSpec("shutdown_timeout", 10.0, "seconds a SIGINT/SIGTERM waits for a running "
               "generation before abandoning it", float_range=(0.0, 3600.0)),
+    ParamSpec("frame_id", "world", "fixed frame of the markers (the object's root link sits "
+              "at its origin); set RViz's Fixed Frame to it"),
+    ParamSpec("openness", 0.0, "pose of markers and joint_states: every joint at "
+              "lower + openness * (upper - lower)", float_range=(0.0, 1.0)),
+    ParamSpec("animate", False, "sweep the openness 0 -> 1 -> 0 over and over (markers and "
+              "joint_states follow); false = hold `openness`"),
+    ParamSpec("animate_period", 4.0, "seconds of one back-and-forth sweep of `animate`",
+              float_range=(0.5, 3600.0)),
+    ParamSpec("publish_rate", 10.0, "joint_states messages per second (and marker updates "
+              "while animating)", float_range=(0.1, 100.0)),
 )
 
 SPECS = {p.name: p for p in PARAMS}
@@ -100,6 +110,9 @@ def validate(name: str, value: Any) -> Optional[str]:
         return f"mesh_uri must be 'file' or start with 'package://<package>', got {value!r}"
     if name == "output_dir" and not str(value).strip():
         return "output_dir must not be empty"
+    if name == "frame_id" and (not value or value != value.strip() or value.startswith("/")
+                               or not value.isprintable()):
+        return f"frame_id must be a non-empty frame name without '/' prefix, got {value!r}"
     return None
 
 
@@ -125,6 +138,11 @@ class NodeSettings:
     max_text_length: int = 1000
     max_image_pixels: int = 4096 * 4096
     shutdown_timeout: float = 10.0
+    frame_id: str = "world"
+    openness: float = 0.0
+    animate: bool = False
+    animate_period: float = 4.0
+    publish_rate: float = 10.0
 
     @classmethod
     def from_values(cls, values: dict[str, Any]) -> "NodeSettings":

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 from artformer_ros.conversions import (RequestError, decode_cdr_string, image_to_rgb,
-                                       markers_from_urdf, mesh_visuals, parse_text_request,
-                                       result_to_json, rpy_to_quaternion, slug)
+                                       joint_state, markers_from_urdf, matrix_to_quaternion,
+                                       mesh_visuals, parse_text_request, result_to_json, slug)
 from artformer_ros.params import PARAMS, SPECS, NodeSettings, validate
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
@@ -172,14 +172,28 @@ URDF = """<robot name="r">
 </robot>"""
 
 
-def test_markers_follow_the_urdf_visuals():
+def _pose_matrix(marker):
+    from scipy.spatial.transform import Rotation
+
+    q = marker.pose.orientation
+    T = np.eye(4)
+    T[:3, :3] = Rotation.from_quat([q.x, q.y, q.z, q.w]).as_matrix()
+    T[:3, 3] = [marker.pose.position.x, marker.pose.position.y, marker.pose.position.z]
+    return T
+
+
+def test_markers_follow_the_urdf_visuals_in_one_frame():
+    from scipy.spatial.transform import Rotation
     from visualization_msgs.msg import Marker
 
-    arr = markers_from_urdf(URDF)
+    door_pose = np.eye(4)
+    door_pose[:3, :3] = Rotation.from_euler("z", 0.7).as_matrix()
+    door_pose[:3, 3] = [0.5, -0.25, 0.125]
+    arr = markers_from_urdf(URDF, {"body": np.eye(4), "door_0": door_pose}, frame_id="map")
     clear, body, door = arr.markers
     assert clear.action == Marker.DELETEALL
-    assert [m.header.frame_id for m in (body, door)] == ["body", "door_0"]
-    assert all(m.type == Marker.MESH_RESOURCE and m.action == Marker.ADD and m.frame_locked
+    assert [m.header.frame_id for m in arr.markers] == ["map"] * 3
+    assert all(m.type == Marker.MESH_RESOURCE and m.action == Marker.ADD and not m.frame_locked
                for m in (body, door))
     assert body.mesh_resource == "file:///x/body.obj"
     assert door.mesh_resource == "file:///abs/door.obj"
@@ -187,31 +201,85 @@ def test_markers_follow_the_urdf_visuals():
     assert (door.scale.x, door.scale.y, door.scale.z) == (1.0, 1.0, 1.0)
     assert (body.pose.position.x, body.pose.position.y, body.pose.position.z) == (0.1, 0.2, 0.3)
     assert body.pose.orientation.z == pytest.approx(math.sin(math.pi / 4), abs=1e-6)
+    assert np.allclose(_pose_matrix(door), door_pose)        # visual origin 0: the link pose
     assert (body.color.r, body.color.b, body.color.a) == (1.0, 0.0, 1.0)
     assert (door.color.b, door.color.a) == (1.0, 0.5)
     assert len({m.id for m in (body, door)}) == 2
+    again = markers_from_urdf(URDF, {"body": np.eye(4), "door_0": np.eye(4)}, clear=False)
+    assert [m.id for m in again.markers] == [body.id, door.id]   # an update, no DELETEALL
+    with pytest.raises(ValueError, match="door_0"):
+        markers_from_urdf(URDF, {"body": np.eye(4)})
 
 
-def test_quaternion_of_rpy_is_unit_and_matches_a_rotation_matrix():
+def test_quaternion_of_a_matrix_matches_scipy_including_half_turns():
     from scipy.spatial.transform import Rotation
 
-    for rpy in [(0.3, -0.2, 1.1), (math.pi, 0, 0), (0, 0, 0)]:
-        q = rpy_to_quaternion(*rpy)
-        ref = Rotation.from_euler("xyz", rpy).as_quat()   # URDF rpy = extrinsic x, y, z
-        assert np.allclose(q, ref) or np.allclose(q, -ref)
+    rots = list(Rotation.random(50, random_state=0))
+    rots += [Rotation.from_rotvec(np.pi * np.array(a, float) / np.linalg.norm(a))
+             for a in ([1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 0], [0, 1, -1])]
+    rots.append(Rotation.identity())
+    for r in rots:
+        q = np.array(matrix_to_quaternion(r.as_matrix()))
+        ref = r.as_quat()
+        assert np.isclose(np.linalg.norm(q), 1.0) and q[3] >= 0
+        assert np.allclose(q, ref, atol=1e-9) or np.allclose(q, -ref, atol=1e-9)
 
 
-def test_markers_of_an_exported_example_object(tmp_path):
-    from model.core.example import example_bottle
+@pytest.mark.parametrize("make", ["example_cabinet", "example_bottle"])
+def test_object_pose_matches_the_urdf_forward_kinematics(tmp_path, make):
+    """ObjectPose (the core's kinematics) against yourdfpy's FK of the exported URDF: the
+    same link poses for the positions it puts on joint_states, and those positions are
+    lerp(lower, upper, openness) of the URDF limits (the bottle's cap is a screw)."""
+    import yourdfpy
+
+    from artformer_ros.kinematics import ObjectPose
+    from model.core import example
     from model.export import export_object
 
-    res = export_object(example_bottle(), tmp_path / "bottle", preview=False)
+    res = export_object(getattr(example, make)(), tmp_path / "o", preview=False)
+    pose = ObjectPose.from_urdf(res.urdf_path)
+    urdf = yourdfpy.URDF.load(res.urdf_path, load_meshes=False,
+                              build_collision_scene_graph=False, load_collision_meshes=False)
+    movable = [j.name for j in urdf.robot.joints if j.type != "fixed"]
     xml = open(res.urdf_path).read()
-    vis = mesh_visuals(xml)
-    assert {v["link"] for v in vis} == set(res.mesh_paths)
-    for v in vis:
-        assert os.path.exists(v["uri"][len("file://"):])
-    assert len(markers_from_urdf(xml).markers) == len(vis) + 1
+    visuals = mesh_visuals(xml)
+    assert {v["link"] for v in visuals} == set(res.mesh_paths)
+    assert all(os.path.exists(v["uri"][len("file://"):]) for v in visuals)
+    for openness in (0.0, 0.3, 1.0):
+        names, positions = pose.joint_positions(openness)
+        assert sorted(names) == sorted(movable) and movable
+        for name, value in zip(names, positions):
+            lim = urdf.joint_map[name].limit
+            assert value == pytest.approx(lim.lower + openness * (lim.upper - lim.lower))
+        urdf.update_cfg(dict(zip(names, positions)))
+        links = pose.link_poses(openness)
+        for link, T in links.items():
+            ref = urdf.get_transform(frame_to=link, frame_from=pose.root_link)
+            assert np.allclose(T, ref, atol=1e-9), (link, openness)
+        arr = markers_from_urdf(xml, links, frame_id="world")
+        assert len(arr.markers) == len(visuals) + 1
+        for vis, m in zip(visuals, arr.markers[1:]):
+            visual = urdf.link_map[vis["link"]].visuals[0].origin
+            ref = urdf.get_transform(frame_to=vis["link"], frame_from=pose.root_link) @ visual
+            assert np.allclose(_pose_matrix(m), ref, atol=1e-6), vis["link"]
+    closed, opened = pose.link_poses(0.0), pose.link_poses(1.0)
+    assert any(not np.allclose(closed[k], opened[k]) for k in closed)
+
+
+def test_sweep_goes_back_and_forth():
+    from artformer_ros.kinematics import sweep
+
+    got = [sweep(t, 4.0) for t in (0.0, 1.0, 2.0, 3.0, 4.0, 5.0)]
+    assert got == pytest.approx([0.0, 0.5, 1.0, 0.5, 0.0, 0.5])
+    with pytest.raises(ValueError):
+        sweep(1.0, 0.0)
+
+
+def test_joint_state_message():
+    msg = joint_state(["a_joint", "b_slide"], [0.5, np.float32(0.25)])
+    assert list(msg.name) == ["a_joint", "b_slide"] and list(msg.position) == [0.5, 0.25]
+    with pytest.raises(ValueError):
+        joint_state(["a"], [])
 
 
 # -- parameters ------------------------------------------------------------------------------
@@ -231,6 +299,8 @@ def test_node_settings_defaults_match_the_parameter_table():
     ("output_dir", " ", "empty"), ("mesh_uri", "http://x", "package://"),
     ("mesh_uri", "package://", "package://"), ("resolution", 512, "resolution"),
     ("preview", 1, "type bool"), ("guidance", -1.0, "guidance"), ("retention", 0, "retention"),
+    ("frame_id", "", "frame_id"), ("frame_id", "/world", "frame_id"), ("openness", 1.5, r"\[0.0, 1.0\]"),
+    ("animate", "yes", "type bool"), ("publish_rate", 0.0, "publish_rate"),
 ])
 def test_invalid_parameter_values_have_a_reason(name, value, match):
     reason = validate(name, value)
@@ -258,7 +328,7 @@ def test_config_yaml_holds_exactly_the_declared_defaults():
     import yaml
 
     with open(os.path.join(REPO, "config", "artformer.yaml")) as f:
-        params = yaml.safe_load(f)["artformer_generator"]["ros__parameters"]
+        params = yaml.safe_load(f)["/**"]["ros__parameters"]   # any name, any namespace
     assert set(params) == set(SPECS)
     for name, value in params.items():
         assert validate(name, value) is None, name

@@ -187,7 +187,7 @@ def test_latched_outputs_reach_a_late_subscriber(node_factory, ros_context):
     assert late.mesh_paths[-1]["mesh_paths"] == res["mesh_paths"]
     arr = markers[-1].markers
     assert arr[0].action == Marker.DELETEALL
-    assert {m.header.frame_id for m in arr[1:]} == set(res["mesh_paths"])
+    assert {m.header.frame_id for m in arr} == {"world"}   # the frame_id parameter
     assert {m.mesh_resource for m in arr[1:]} == {"file://" + p for p in res["mesh_paths"].values()}
     late.close()
     assert node.stop() == 0
