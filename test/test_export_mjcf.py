@@ -182,3 +182,18 @@ def test_cli(examples, tmp_path):
     out = subprocess.run([sys.executable, "-m", "model", "convert", str(tmp_path / "nope"),
                           "--to", "mjcf"], capture_output=True, text=True, timeout=120)
     assert out.returncode == 1 and "does not exist" in out.stderr
+
+
+def test_continuous_joint_and_primitives(tmp_path):
+    from test_export_usd import WHEEL_URDF  # noqa: E402  (same hand-written URDF)
+    (tmp_path / "cart.urdf").write_text(WHEEL_URDF)
+    res = export_mjcf(tmp_path)
+    m = mujoco.MjModel.from_xml_path(res.scene_xml)
+    j = m.joint("wheel_joint")
+    assert j.type[0] == mujoco.mjtJoint.mjJNT_HINGE and not m.jnt_limited[j.id]
+    assert {mujoco.mjtGeom(t).name for t in m.geom_type} >= {"mjGEOM_BOX", "mjGEOM_CYLINDER"}
+    d = mujoco.MjData(m)
+    mujoco.mj_kinematics(m, d)
+    lift = m.body("base").pos[2]
+    assert np.allclose(d.xpos[m.body("wheel").id] - [0, 0, lift], [0.2, 0.12, -0.05], atol=1e-9)
+    assert drive_check(res.scene_xml, res.joints).ok

@@ -2,6 +2,7 @@
 
     artformer convert out/cabinet --to mjcf                   # out/cabinet/mjcf/
     artformer convert out/cabinet --to mjcf --out sim/cabinet --floating --check
+    artformer convert out/cabinet --to usd                    # out/cabinet/usd/<name>.usd
 
 Python: ``model.export.convert.convert(folder, "mjcf")`` (or the per-format functions
 ``model.export.mjcf.export_mjcf`` ...).
@@ -15,7 +16,7 @@ import sys
 from pathlib import Path
 from typing import Optional
 
-FORMATS = ("mjcf",)
+FORMATS = ("mjcf", "usd")
 
 
 def convert(folder: os.PathLike, to: str, out: Optional[os.PathLike] = None, **options):
@@ -25,6 +26,9 @@ def convert(folder: os.PathLike, to: str, out: Optional[os.PathLike] = None, **o
     if to == "mjcf":
         from .mjcf import export_mjcf
         return export_mjcf(folder, out, **options)
+    if to == "usd":
+        from .usd import export_usd
+        return export_usd(folder, out, **options)
     raise ConvertError(f"unknown format {to!r}; choose one of {', '.join(FORMATS)}")
 
 
@@ -32,13 +36,14 @@ def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="artformer convert",
         description="Convert an object folder written by `artformer export` / `artformer "
-                    "generate` (URDF + meshes) to MJCF.")
+                    "generate` (URDF + meshes) to MJCF or USD.")
     p.add_argument("folder", help="object folder (or its .urdf file)")
     p.add_argument("--to", required=True, choices=FORMATS, help="target format")
-    p.add_argument("--out", help="output folder (default: FOLDER/<format>)")
+    p.add_argument("--out", help="output folder (mjcf; default FOLDER/mjcf) or file (usd: "
+                                 ".usd/.usda/.usdc; default FOLDER/usd/<name>.usd)")
+    p.add_argument("--floating", action="store_true",
+                   help="mjcf, usd: do not fix the root link to the world (MJCF: free joint)")
     g = p.add_argument_group("mjcf")
-    g.add_argument("--floating", action="store_true",
-                   help="give the root body a free joint instead of fixing it to the world")
     g.add_argument("--kp-hz", type=float, default=4.0,
                    help="natural frequency of every position actuator at rest (default 4 Hz)")
     p.add_argument("--check", action="store_true",
@@ -69,6 +74,18 @@ def _print_mjcf(res, check: bool) -> int:
     return 0 if rep.ok else 1
 
 
+def _print_usd(res, check: bool, folder) -> int:
+    print(f"stage:     {res.path}")
+    print(f"root:      {res.root}  links: {len(res.links)}  moving joints: {len(res.joints)}")
+    if not check:
+        return 0
+    from .usd import check_usd
+    problems = check_usd(res.path, folder)
+    print(f"check:     {'ok' if not problems else 'FAIL'}"
+          + "".join(f"\n  {p}" for p in problems))
+    return 0 if not problems else 1
+
+
 def main(argv: list[str]) -> int:
     args = _parser().parse_args(argv[1:] if argv and argv[0] == "convert" else argv)
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
@@ -77,11 +94,15 @@ def main(argv: list[str]) -> int:
     options = {}
     if args.to == "mjcf":
         options = {"floating": args.floating, "kp_hz": args.kp_hz}
+    elif args.to == "usd":
+        options = {"floating": args.floating}
     try:
         res = convert(args.folder, args.to, Path(args.out) if args.out else None, **options)
     except ConvertError as e:
         print(f"artformer convert: {e}", file=sys.stderr)
         return 1
+    if args.to == "usd":
+        return _print_usd(res, args.check, args.folder)
     return _print_mjcf(res, args.check)
 
 

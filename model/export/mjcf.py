@@ -26,8 +26,9 @@ Mapping from the URDF:
   range and ``forcerange`` is the URDF effort. ``kp`` is set from the joint-space inertia at
   rest so that every joint has the same natural frequency (``kp_hz``), critically damped
   (``dampratio`` 1).
-* The root body is fixed to the world, lifted so the object stands on the floor (z = 0).
-  With ``floating=True`` it gets a free joint instead.
+* The root body is fixed to the world, lifted so the object's lowest point is 1 mm above
+  the floor (no part starts in contact with it). With ``floating=True`` it gets a free joint
+  instead and its lowest point is at z = 0.
 * A parent and child body never collide with each other (MuJoCo's rule for moving parents,
   written out as ``<contact><exclude>`` for the children of the fixed root). Other pairs of
   bodies whose collision geometry already interpenetrates at rest (more than
@@ -56,6 +57,9 @@ log = logging.getLogger(__name__)
 MESH_EXTS = (".obj", ".stl")           # formats written as they are; others become OBJ
 HELPER_SUFFIX = "_screw_helper"        # model.export.urdf's helper link of a screw
 TIMESTEP = 0.002
+# A fixed object hovers this far above the floor: a moving part resting on the floor would
+# otherwise start in contact with it and be held by friction (a wheel, a door's lower edge).
+FLOOR_CLEARANCE = 0.001                # m
 
 
 @dataclass
@@ -288,7 +292,7 @@ def _build(model: URDFModel, assets: _Assets, *, floating: bool, on_floor: bool)
     if on_floor:
         b = _rest_bounds(model)
         if b is not None:
-            base[2, 3] = -b[0, 2]
+            base[2, 3] = -b[0, 2] + (0.0 if floating else FLOOR_CLEARANCE)
     add_link(world, model.root, base, [])
 
     for key, mname in materials.items():
@@ -403,7 +407,7 @@ def export_mjcf(folder: os.PathLike, out_dir: Optional[os.PathLike] = None, *,
 
     ``out_dir`` defaults to ``<folder>/mjcf``. ``floating``: a free joint on the root body
     instead of fixing it to the world. ``on_floor``: lift the object so its lowest point is
-    at z = 0. ``kp_hz``: natural frequency of every position actuator at rest.
+    on the floor (1 mm above it when fixed). ``kp_hz``: natural frequency of every position actuator at rest.
     ``exclude_depth`` (m): body pairs interpenetrating deeper than this at rest do not collide.
     Raises ConvertError when the URDF cannot be read or MuJoCo cannot compile the result.
     """
@@ -442,7 +446,7 @@ def export_mjcf(folder: os.PathLike, out_dir: Optional[os.PathLike] = None, *,
         write()
         bounds = _rest_bounds(model)
         if bounds is not None and on_floor:
-            bounds = bounds + np.array([0.0, 0.0, -bounds[0, 2]])
+            bounds = bounds + np.array([0.0, 0.0, -bounds[0, 2]])   # for the camera framing
         (tmp / "scene.xml").write_text(_scene(model_file, name, bounds))
         _compile(tmp / "scene.xml")
         _replace_dir(tmp, out_dir)
