@@ -47,7 +47,9 @@ class GeneratorClient:
     """Talks to one generator node (topics relative to ``namespace``)."""
 
     def __init__(self, *, context=None, namespace: str = "", name: Optional[str] = None,
-                 watch_description: bool = True):
+                 watch_description: bool = True, watch_rosout: bool = False):
+        """``watch_rosout``: collect the generator node's /rosout lines in ``self.rosout``
+        as (logger name, level, message), earlier ones included (/rosout is latched)."""
         import rclpy
         from rclpy.executors import SingleThreadedExecutor
         from sensor_msgs.msg import Image
@@ -75,6 +77,20 @@ class GeneratorClient:
             self.node.create_subscription(
                 String, "robot_description",
                 lambda m: self.descriptions.append((time.monotonic(), m.data)), LATCHED)
+        self.rosout: list[tuple[str, int, str]] = []
+        if watch_rosout:
+            from rcl_interfaces.msg import Log
+            from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+            prefix = ".".join([p for p in namespace.split("/") if p] + ["artformer_generator"])
+            qos = QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE,
+                             durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+            def on_log(m):
+                if m.name == prefix or m.name.startswith(prefix + "."):
+                    self.rosout.append((m.name, int(m.level), m.msg))
+
+            self.node.create_subscription(Log, "/rosout", on_log, qos)
         self.text_pub = self.node.create_publisher(String, "text_request", TEXT_REQUESTS)
         self.image_pub = self.node.create_publisher(Image, "image_request", IMAGE_PUBLISHER)
         self._String = String
