@@ -25,6 +25,7 @@ ROUTES: dict[tuple[str, ...], tuple[str, str]] = {
     ("bench", "geometry"): ("model.geometry.commands", "shape-prior meshing and DDIM speed"),
     ("eval",): ("model.metrics.commands", "evaluate a checkpoint (POR, MMD/COV/1-NNA, alignment...)"),
     ("bench",): ("model.metrics.commands", "per-stage speed and memory benchmark"),
+    ("audit",): ("model.metrics.commands", "physical sim-ready audit of URDF folders"),
 }
 
 
