@@ -299,7 +299,8 @@ def test_node_settings_defaults_match_the_parameter_table():
     ("output_dir", " ", "empty"), ("mesh_uri", "http://x", "package://"),
     ("mesh_uri", "package://", "package://"), ("resolution", 512, "resolution"),
     ("preview", 1, "type bool"), ("guidance", -1.0, "guidance"), ("retention", 0, "retention"),
-    ("frame_id", "", "frame_id"), ("frame_id", "/world", "frame_id"), ("openness", 1.5, r"\[0.0, 1.0\]"),
+    ("frame_id", "", "frame_id"), ("frame_id", "/world", "frame_id"),
+    ("openness", 1.5, r"\[0.0, 1.0\]"),
     ("animate", "yes", "type bool"), ("publish_rate", 0.0, "publish_rate"),
 ])
 def test_invalid_parameter_values_have_a_reason(name, value, match):
