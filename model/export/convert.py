@@ -3,6 +3,7 @@
     artformer convert out/cabinet --to mjcf                   # out/cabinet/mjcf/
     artformer convert out/cabinet --to mjcf --out sim/cabinet --floating --check
     artformer convert out/cabinet --to usd                    # out/cabinet/usd/<name>.usd
+    artformer convert out/cabinet --to ros-package --name cabinet   # .../ros/cabinet_description
 
 Python: ``model.export.convert.convert(folder, "mjcf")`` (or the per-format functions
 ``model.export.mjcf.export_mjcf`` ...).
@@ -16,7 +17,7 @@ import sys
 from pathlib import Path
 from typing import Optional
 
-FORMATS = ("mjcf", "usd")
+FORMATS = ("mjcf", "usd", "ros-package")
 
 
 def convert(folder: os.PathLike, to: str, out: Optional[os.PathLike] = None, **options):
@@ -29,6 +30,9 @@ def convert(folder: os.PathLike, to: str, out: Optional[os.PathLike] = None, **o
     if to == "usd":
         from .usd import export_usd
         return export_usd(folder, out, **options)
+    if to == "ros-package":
+        from .rospackage import export_ros_package
+        return export_ros_package(folder, out, **options)
     raise ConvertError(f"unknown format {to!r}; choose one of {', '.join(FORMATS)}")
 
 
@@ -36,16 +40,21 @@ def _parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(
         prog="artformer convert",
         description="Convert an object folder written by `artformer export` / `artformer "
-                    "generate` (URDF + meshes) to MJCF or USD.")
+                    "generate` (URDF + meshes) to MJCF, USD or a ROS 2 description "
+                    "package.")
     p.add_argument("folder", help="object folder (or its .urdf file)")
     p.add_argument("--to", required=True, choices=FORMATS, help="target format")
-    p.add_argument("--out", help="output folder (mjcf; default FOLDER/mjcf) or file (usd: "
-                                 ".usd/.usda/.usdc; default FOLDER/usd/<name>.usd)")
+    p.add_argument("--out", help="mjcf: output folder (default FOLDER/mjcf); usd: output file "
+                                 ".usd/.usda/.usdc (default FOLDER/usd/<name>.usd); "
+                                 "ros-package: the package folder (default "
+                                 "FOLDER/ros/NAME_description)")
     p.add_argument("--floating", action="store_true",
                    help="mjcf, usd: do not fix the root link to the world (MJCF: free joint)")
     g = p.add_argument_group("mjcf")
     g.add_argument("--kp-hz", type=float, default=4.0,
                    help="natural frequency of every position actuator at rest (default 4 Hz)")
+    g = p.add_argument_group("ros-package")
+    g.add_argument("--name", help="package NAME_description (default: from the robot name)")
     p.add_argument("--check", action="store_true",
                    help="load the result in its consumer and move every joint (exit 1 on failure)")
     p.add_argument("-v", "--verbose", action="store_true")
@@ -86,6 +95,17 @@ def _print_usd(res, check: bool, folder) -> int:
     return 0 if not problems else 1
 
 
+def _print_ros(res, check: bool) -> int:
+    print(f"package:   {res.package}  ({res.out_dir})")
+    print(f"urdf:      {res.urdf}  ({len(res.meshes)} meshes)")
+    print(f"build:     colcon build --base-paths {Path(res.out_dir).parent} && "
+          f"source install/setup.bash")
+    print(f"installed: share/{res.share_urdf}")
+    if check:
+        print("check:     --check is not available for ros-package (build it with colcon)")
+    return 0
+
+
 def main(argv: list[str]) -> int:
     args = _parser().parse_args(argv[1:] if argv and argv[0] == "convert" else argv)
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
@@ -96,6 +116,8 @@ def main(argv: list[str]) -> int:
         options = {"floating": args.floating, "kp_hz": args.kp_hz}
     elif args.to == "usd":
         options = {"floating": args.floating}
+    else:
+        options = {"name": args.name}
     try:
         res = convert(args.folder, args.to, Path(args.out) if args.out else None, **options)
     except ConvertError as e:
@@ -103,6 +125,8 @@ def main(argv: list[str]) -> int:
         return 1
     if args.to == "usd":
         return _print_usd(res, args.check, args.folder)
+    if args.to == "ros-package":
+        return _print_ros(res, args.check)
     return _print_mjcf(res, args.check)
 
 
