@@ -1,13 +1,16 @@
 """Start the artformer generator node with the package's parameter file.
 
-    ros2 launch artformer_ros artformer.launch.py [params_file:=my.yaml]
-        [namespace:=artformer] [remap_description:=/robot_description]
+    ros2 launch artformer_ros artformer.launch.py [params_file:=my.yaml] [namespace:=gen]
+        [remap_description:=artformer/robot_description] [remap_joint_states:=/joint_states]
 
-Every node parameter (backend, output_dir, resolution...) comes from the params file; copy
-share/artformer_ros/config/artformer.yaml, edit it and pass it as params_file.
+Every node parameter (backend, output_dir, frame_id, openness, animate...) comes from the
+params file; copy share/artformer_ros/config/artformer.yaml, edit it and pass it as
+params_file. Its key `/**` matches the node in any namespace.
 
-Needs a full ROS 2 install (the `launch` and `launch_ros` packages); topics are relative, so
-`namespace` moves all of them, and robot_description can be remapped with `remap_description`.
+Needs a full ROS 2 install (the `launch` and `launch_ros` packages). Topics are relative, so
+`namespace` moves all of them; `remap_description` and `remap_joint_states` rename the two
+topics that robot_state_publisher also knows (a relative target stays in the namespace, a
+leading `/` makes it global).
 """
 import os
 
@@ -28,6 +31,8 @@ def generate_launch_description():
                               description="namespace of the node and its topics"),
         DeclareLaunchArgument("remap_description", default_value="robot_description",
                               description="topic the URDF is latched on"),
+        DeclareLaunchArgument("remap_joint_states", default_value="joint_states",
+                              description="topic of the object's joint positions"),
     ]
     node = Node(
         package="artformer_ros",
@@ -37,6 +42,7 @@ def generate_launch_description():
         output="screen",
         emulate_tty=True,
         parameters=[LaunchConfiguration("params_file")],
-        remappings=[("robot_description", LaunchConfiguration("remap_description"))],
+        remappings=[("robot_description", LaunchConfiguration("remap_description")),
+                    ("joint_states", LaunchConfiguration("remap_joint_states"))],
     )
     return LaunchDescription(args + [node])

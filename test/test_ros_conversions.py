@@ -336,14 +336,47 @@ def test_config_yaml_holds_exactly_the_declared_defaults():
         assert value == SPECS[name].default, name
 
 
-def test_launch_file_parses_and_has_a_generate_function():
-    import ast
+def test_launch_file_passes_namespace_params_and_remaps_to_the_node(monkeypatch):
+    """Runs generate_launch_description() against recording stand-ins of launch / launch_ros
+    (not installable here): the node gets the declared namespace, params file and remaps."""
+    import types
 
+    made = {}
+
+    class Config:                                  # LaunchConfiguration("x") -> its name
+        def __init__(self, name):
+            self.name = name
+
+        def __eq__(self, other):
+            return isinstance(other, Config) and other.name == self.name
+
+    def module(name, **attrs):
+        m = types.ModuleType(name)
+        m.__dict__.update(attrs)
+        monkeypatch.setitem(sys.modules, name, m)
+
+    module("ament_index_python")
+    module("ament_index_python.packages", get_package_share_directory=lambda p: f"/share/{p}")
+    module("launch", LaunchDescription=list)
+    module("launch.actions", DeclareLaunchArgument=lambda name, **kw: ("arg", name, kw))
+    module("launch.substitutions", LaunchConfiguration=Config)
+    module("launch_ros")
+    module("launch_ros.actions", Node=lambda **kw: made.setdefault("node", kw))
     path = os.path.join(REPO, "launch", "artformer.launch.py")
-    tree = ast.parse(open(path).read(), path)
-    names = {n.name for n in tree.body if isinstance(n, ast.FunctionDef)}
-    assert "generate_launch_description" in names
-    assert "generator_node" in open(path).read()
+    ns = {}
+    exec(compile(open(path).read(), path, "exec"), ns)
+    entities = ns["generate_launch_description"]()
+    args = {e[1]: e[2]["default_value"] for e in entities if isinstance(e, tuple)}
+    assert args == {"params_file": "/share/artformer_ros/config/artformer.yaml",
+                    "namespace": "", "remap_description": "robot_description",
+                    "remap_joint_states": "joint_states"}
+    node = made["node"]
+    assert (node["package"], node["executable"], node["name"]) == (
+        "artformer_ros", "generator_node", "artformer_generator")
+    assert node["namespace"] == Config("namespace")
+    assert node["parameters"] == [Config("params_file")]
+    assert node["remappings"] == [("robot_description", Config("remap_description")),
+                                  ("joint_states", Config("remap_joint_states"))]
 
 
 def test_node_module_import_is_light():
