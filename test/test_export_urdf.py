@@ -179,7 +179,7 @@ def test_collision_methods(objects):
 @pytest.mark.parametrize("name", ["cabinet", "bottle"])
 def test_loads_in_simulators_joints_move_and_poses_match(exported, objects, name):
     rep = check_urdf(exported[name].urdf_path, objects[name])
-    assert set(rep.sims) == {"yourdfpy", "pybullet", "mujoco"}
+    assert set(rep.sims) == {"yourdfpy", "pybullet", "mujoco", "pinocchio"}
     for sim, r in rep.sims.items():
         assert r.loaded and r.joints_movable, (sim, r.error)
         assert r.num_joints == (3 if name == "cabinet" else 2)

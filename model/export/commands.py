@@ -25,7 +25,8 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--density", type=float, default=600.0, help="kg/m^3 for the inertials")
     p.add_argument("--no-preview", action="store_true", help="skip preview.png")
     p.add_argument("--check", action="store_true",
-                   help="load each URDF in yourdfpy, pybullet and MuJoCo and compare poses")
+                   help="load each URDF in yourdfpy, pybullet, MuJoCo and Pinocchio and "
+                        "compare poses")
     return p
 
 

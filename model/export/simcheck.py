@@ -1,5 +1,5 @@
-"""Load a URDF in real consumers (yourdfpy, pybullet, MuJoCo), move every joint across its
-range, and compare link poses with our own forward kinematics.
+"""Load a URDF in real consumers (yourdfpy, pybullet, MuJoCo, Pinocchio), move every joint
+across its range, and compare link poses with our own forward kinematics.
 
     report = check_urdf("out/cabinet/example_cabinet.urdf", obj)
     report.ok                      # every simulator loaded, every joint moved, poses agree
@@ -31,7 +31,7 @@ import numpy as np
 
 log = logging.getLogger(__name__)
 
-SIMULATORS = ("yourdfpy", "pybullet", "mujoco")
+SIMULATORS = ("yourdfpy", "pybullet", "mujoco", "pinocchio")
 POSE_TOL = 1e-4          # metres / radians
 MOVE_TOL = 1e-6
 
@@ -327,8 +327,54 @@ def _backend_mujoco(path: Path):
     return set_values, movable, lambda: None
 
 
+def _package_dirs() -> list[str]:
+    """Folders Pinocchio searches for ``package://<pkg>/...``: each ament prefix's share/."""
+    dirs = []
+    for prefix in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep):
+        share = Path(prefix) / "share"
+        if prefix and share.is_dir():
+            dirs.append(str(share))
+    return dirs
+
+
+def _backend_pinocchio(path: Path):
+    """Pinocchio's kinematic model (fixed base) plus its collision geometry model, which
+    loads every collision mesh (a missing one raises). Link poses are its BODY frames."""
+    import pinocchio as pin
+    model = pin.buildModelFromUrdf(str(path))
+    pin.buildGeomFromUrdf(model, str(path), pin.GeometryType.COLLISION,
+                          package_dirs=_package_dirs() + [str(path.parent)])
+    data = model.createData()
+    movable = {}
+    for jid in range(1, model.njoints):
+        j = model.joints[jid]
+        if j.nq == 1:
+            movable[model.names[jid]] = (float(model.lowerPositionLimit[j.idx_q]),
+                                         float(model.upperPositionLimit[j.idx_q]))
+        else:                        # continuous: (cos, sin) of the angle, no limits
+            movable[model.names[jid]] = (None, None)
+    frames = {f.name: k for k, f in enumerate(model.frames) if f.type == pin.FrameType.BODY}
+
+    def set_values(vals: dict) -> dict:
+        q = pin.neutral(model)
+        for jname, v in vals.items():
+            jid = model.getJointId(jname)
+            if jid >= model.njoints:
+                raise KeyError(f"pinocchio model has no joint {jname!r}")
+            j = model.joints[jid]
+            if j.nq == 1:
+                q[j.idx_q] = v
+            else:
+                q[j.idx_q:j.idx_q + 2] = (math.cos(v), math.sin(v))
+        pin.forwardKinematics(model, data, q)
+        pin.updateFramePlacements(model, data)
+        return {name: np.array(data.oMf[k].homogeneous) for name, k in frames.items()}
+
+    return set_values, movable, lambda: None
+
+
 _BACKENDS: dict[str, Callable] = {"yourdfpy": _backend_yourdfpy, "pybullet": _backend_pybullet,
-                                  "mujoco": _backend_mujoco}
+                                  "mujoco": _backend_mujoco, "pinocchio": _backend_pinocchio}
 
 
 def _has_package_uri(path: Path) -> bool:
@@ -419,6 +465,9 @@ def check_urdf(path: os.PathLike, obj=None, *, simulators=SIMULATORS) -> SimRepo
                     if bad or not _has_mujoco_element(path) or (
                             sim == "pybullet" and _has_package_uri(path)):
                         load_path = _resolved_copy(path, tmpdir, sim, drop_visuals=bool(bad))
+                elif sim == "pinocchio" and _has_package_uri(path):
+                    # package:// resolved as for the others (ament index, then beside the URDF)
+                    load_path = _resolved_copy(path, tmpdir, sim, drop_visuals=False)
                 set_values, sim_movable, close = _BACKENDS[sim](load_path)
                 res.loaded = True
                 res.num_joints = len(sim_movable)

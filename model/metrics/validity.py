@@ -1,5 +1,5 @@
-"""Validity (DESIGN §7): the share of generated URDFs that load in yourdfpy, pybullet and MuJoCo
-with every joint movable. Built on ``model.export.simcheck.check_urdf``.
+"""Validity (DESIGN §7): the share of generated URDFs that load in yourdfpy, pybullet, MuJoCo
+and Pinocchio with every joint movable. Built on ``model.export.simcheck.check_urdf``.
 
 A URDF counts as valid when every simulator loaded it without error and moved all its joints.
 When the source object is given, simcheck also compares link poses with our forward
