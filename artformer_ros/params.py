@@ -46,6 +46,8 @@ PARAMS: tuple[ParamSpec, ...] = (
               "false saves its rendering time (the example backend never writes one)"),
     ParamSpec("mesh_uri", "file", "mesh references in the URDF: 'file' (absolute file:// "
               "paths) or a 'package://<pkg>/<path>' prefix that replaces the output folder"),
+    ParamSpec("refine", True, "layout + mesh refinement of each generated object before "
+              "export (GenerationConfig.refine)", read_only=True),
     ParamSpec("frame_images", True, "crop an image request with a plain background around its "
               "object first, as the training renders frame it", read_only=True),
     ParamSpec("device", "cpu", "torch device: cpu, cuda or cuda:N", read_only=True),
@@ -128,6 +130,7 @@ class NodeSettings:
     mesh_format: str = "obj"
     preview: bool = True
     mesh_uri: str = "file"
+    refine: bool = True
     frame_images: bool = True
     device: str = "cpu"
     threads: int = 2
@@ -165,4 +168,5 @@ class NodeSettings:
         return GenerationConfig(checkpoint=self.checkpoint or None, resolution=self.resolution,
                                 steps=self.steps, guidance=self.guidance,
                                 mesh_format=self.mesh_format, device=self.device,
-                                threads=self.threads, frame_images=self.frame_images)
+                                threads=self.threads, frame_images=self.frame_images,
+                                refine=self.refine)
