@@ -77,10 +77,24 @@ def _generate(argv: list[str]) -> int:
     p.add_argument("text", nargs="?", help="description of the object")
     p.add_argument("--image", help="an image file instead of a text")
     p.add_argument("--out", required=True, help="output folder (sample_<i>/ inside when --samples > 1)")
+    b = p.add_argument_group("batch (model/pipeline/batch.py)")
+    b.add_argument("--prompts", metavar="FILE",
+                   help="one prompt per line: generate --samples objects per prompt into "
+                        "OUT/<i>_<words>_s<seed>/ with OUT/manifest.jsonl; rerunning resumes")
+    b.add_argument("--workers", type=int, default=1,
+                   help="worker processes, each loading the model once (default 1)")
+    b.add_argument("--audit", action="store_true",
+                   help="record the sim-ready audit of each object in the manifest")
+    b.add_argument("--retry-failed", action="store_true",
+                   help="on resume, redo jobs the manifest records as errors")
     _model_args(p)
     a = p.parse_args(argv)
     logging.basicConfig(level=logging.INFO if a.verbose else logging.WARNING,
                         format="%(levelname)s %(name)s: %(message)s")
+    if a.prompts is not None:
+        if a.text is not None or a.image is not None:
+            p.error("--prompts replaces TEXT / --image; give one of them")
+        return _batch(a)
     if (a.text is None) == (a.image is None):
         p.error("give a TEXT or --image (exactly one)")
     from model.pipeline.api import GenerationError
@@ -97,6 +111,45 @@ def _generate(argv: list[str]) -> int:
         return 1
     _report(outs, results, a.json)
     return 0
+
+
+def _batch(a) -> int:
+    from model.pipeline.api import GenerationError
+    from model.pipeline.batch import BatchError, read_prompts, run_batch
+
+    config = _config(a)       # --threads left at its default: run_batch shares the cores
+
+    def progress(entry, summary):
+        n = summary.skipped + summary.done + summary.failed
+        if entry["status"] == "ok":
+            what = (f"ok    {entry['out_dir']}  {entry['category'] or 'object'}, "
+                    f"{entry['parts']} parts")
+        else:
+            what = f"ERROR {entry['id']} {entry['prompt'][:40]!r}: {entry['error']}"
+        secs = f"{entry['seconds']:.1f} s" if entry.get("seconds") is not None else ""
+        print(f"[{n}/{summary.total}] {what}  {secs}", flush=True)
+
+    try:
+        prompts = read_prompts(a.prompts)
+        summary = run_batch(prompts, a.out, samples=a.samples, workers=a.workers, seed=a.seed,
+                            config=config, audit=a.audit, preview=not a.no_preview,
+                            mesh_uri=a.mesh_uri, retry_failed=a.retry_failed,
+                            progress=progress)
+    except (BatchError, GenerationError) as e:
+        print(f"artformer generate: {e}", file=sys.stderr)
+        return 1
+    except KeyboardInterrupt:
+        print("artformer generate: interrupted; run the same command again to resume",
+              file=sys.stderr)
+        return 130
+    ran = summary.done + summary.failed
+    print(f"manifest: {summary.manifest}")
+    print(f"{summary.total} jobs: {summary.skipped} already done, {summary.done} generated, "
+          f"{summary.failed} failed in this run")
+    if ran:
+        print(f"throughput: {summary.per_minute:.2f} objects/min ({ran} in {summary.seconds:.1f} s "
+              f"with {a.workers} worker(s), model loading included)")
+    return 0 if summary.failed == 0 else 3
 
 
 def _edit(argv: list[str]) -> int:
