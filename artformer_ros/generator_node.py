@@ -268,6 +268,8 @@ class GeneratorNode(Node):
         except Exception as err:   # never let the display cost an answer
             self.get_logger().warning(f"cannot show the object: {type(err).__name__}: {err}")
             self._shown = None
+            if clear:
+                self._pub_markers.publish(markers_at([], {}, frame_id=self.settings.frame_id))
 
     def _tick(self) -> None:
         """joint_states at publish_rate; markers too while animating."""
