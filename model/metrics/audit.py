@@ -8,7 +8,8 @@ For one object (in memory or a URDF folder, ours or anyone's) it measures
   ``states`` ratios while the others stay at rest (a part behind a closed door or lid is
   not required to pass through it: those pairs count in the all-joints sweep only);
 * **attachment** — a sliding part's gap to its parent at rest and fully open; a turning
-  part's axis line to the part and to its parent;
+  part's axis line to the part, and to its parent less the part's thickness (a hinge
+  bridges a door's thickness);
 * **hinges** — a door's or lid's revolute axis lies along an edge of its box (angle to the
   nearest principal axis, distance to the nearest parallel edge / the panel's width);
 * **drawers** — a drawer's (or tray's) opening direction against the outward normal of the
@@ -221,8 +222,13 @@ def attachment_gaps(obj: ArticulatedObject, mans: Optional[dict] = None, search:
                 pairs = [(mans[k].transform(_T34(T[p.name])),
                           mans[p.parent].transform(_T34(T[obj.parts[p.parent].name])))]
             elif ratio == 0.0:
+                # a hinge bridges the panel's thickness between the part and its parent
                 line = _axis_line(p.joint.origin, p.joint.axis, 2.5 * extent)
-                pairs = [(line, mans[k]), (line, mans[p.parent])]
+                thick = float(np.min(_bounds(p)[1] - _bounds(p)[0]))
+                g = max(float(line.min_gap(mans[k], search)),
+                        float(line.min_gap(mans[p.parent], search)) - thick)
+                gaps[p.name] = max(gaps.get(p.name, 0.0), min(g, search))
+                continue
             else:
                 continue
             for a, b in pairs:

@@ -44,6 +44,8 @@ class GenerationConfig:
     max_nodes: int = 32
     max_depth: int = 4
     max_children: int = 16
+    refine: bool = True                # layout + mesh refinement before export (model.refine)
+    face_budget: int = 30000           # visual faces per object after refinement (0: all)
 
 
 @dataclass

@@ -31,6 +31,10 @@ def _model_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--format", dest="mesh_format", choices=("obj", "stl", "glb"), default="obj")
     p.add_argument("--collision", choices=("auto", "cells", "vhacd", "hull", "none"),
                    default="auto", help="collision geometry per link (default auto)")
+    p.add_argument("--no-refine", dest="refine", action="store_false",
+                   help="export the raw model output (no layout / mesh refinement)")
+    p.add_argument("--face-budget", type=int, default=30000,
+                   help="visual faces per object after refinement (default 30000; 0: all)")
     p.add_argument("--threads", type=int, default=2, help="torch CPU threads (2)")
     p.add_argument("--no-preview", action="store_true", help="skip preview.png")
     p.add_argument("--mesh-uri", default="file",
@@ -46,7 +50,8 @@ def _config(a):
                             guidance=a.guidance, geometry=a.geometry, mesh_format=a.mesh_format,
                             collision=a.collision, threads=a.threads,
                             structure_temperature=a.structure_temperature,
-                            follow_plan=a.follow_plan,
+                            follow_plan=a.follow_plan, refine=a.refine,
+                            face_budget=a.face_budget,
                             frame_images=getattr(a, "frame_images", True))
 
 

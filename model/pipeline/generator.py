@@ -7,7 +7,9 @@
 Stages (timed into ``GeneratedObject.timings``, seconds): ``text_encoding`` (or
 ``image_encoding``), ``decoding`` (iterative decoding of the tree), ``diffusion`` (DDIM over
 every part's latent, one batch per object), ``meshing`` (coarse-to-fine SDF + marching
-cubes, fitted to the predicted boxes); ``export`` is added by :meth:`Generator.export`.
+cubes, fitted to the predicted boxes); ``refine`` (``model.refine``: layout before meshing,
+floaters / simplification / carving / joint limits after); ``export`` is added by
+:meth:`Generator.export`.
 """
 from __future__ import annotations
 
@@ -229,6 +231,12 @@ class Generator:
 
         cfg = self.config
         obj = tree.to_object()
+        refine_s, refined = 0.0, {}
+        if cfg.refine and keep is None:
+            from model.refine import refine_layout
+            t = time.perf_counter()
+            refined["layout"] = refine_layout(obj)
+            refine_s += time.perf_counter() - t
         new = [k for k in range(tree.num_nodes) if not (len(tree.kept) and tree.kept[k])]
         texts = [label_text(tree.category, tree.labels[k]) for k in new]
         t = time.perf_counter()
@@ -274,6 +282,15 @@ class Generator:
         if fallbacks:
             log.warning("parts %s had no surface; exported as their boxes", fallbacks)
         obj.metadata["box_fallback_parts"] = fallbacks
+        if cfg.refine:
+            from model.refine import RefineConfig, refine_meshes
+            t = time.perf_counter()
+            kept = frozenset(k for k in range(tree.num_nodes) if len(tree.kept) and tree.kept[k])
+            refined["meshes"] = refine_meshes(obj, RefineConfig(face_budget=cfg.face_budget),
+                                              frozen=kept)
+            refine_s += time.perf_counter() - t
+            timings["refine"] = refine_s
+            obj.metadata["refine"] = refined
         _unique_names(obj)
         try:
             obj.validate()
@@ -360,6 +377,7 @@ def validate_config(cfg: GenerationConfig) -> None:
         (1 <= cfg.threads <= 64, f"threads must be in [1, 64], got {cfg.threads}"),
         (1 <= cfg.token_threads <= 64, f"token_threads must be in [1, 64], got {cfg.token_threads}"),
         (1 <= cfg.max_nodes <= 64, f"max_nodes must be in [1, 64], got {cfg.max_nodes}"),
+        (cfg.face_budget >= 0, f"face_budget must be >= 0, got {cfg.face_budget}"),
         (0 <= cfg.max_depth <= 16, f"max_depth must be in [0, 16], got {cfg.max_depth}"),
         (0 <= cfg.max_children <= 64, f"max_children must be in [0, 64], got {cfg.max_children}"),
     ]

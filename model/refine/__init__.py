@@ -1,0 +1,65 @@
+"""Refinement between decoding and export: a generated object made physically plausible
+without changing its structure (labels, counts, joint types, parents).
+
+    report = refine_layout(obj)          # boxes + joints, before meshing (layout.py)
+    report = refine_meshes(obj)          # after meshing (meshes.py)
+
+Both work in place and return what they changed; :class:`RefineConfig` switches each step
+for ablations (``artformer eval`` measures them, docs/refine.md).
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from typing import Optional
+
+from model.core import ArticulatedObject
+
+from .layout import LayoutConfig, face_of, refine_layout
+
+
+@dataclass
+class RefineConfig:
+    layout: LayoutConfig = field(default_factory=LayoutConfig)
+    floaters: bool = True          # drop specks and enclosed voids of every part
+    carve: bool = True             # parents give way where a moving child passes
+    limits: bool = True            # a range ends where its sweep still collides
+    face_budget: int = 30000       # visual faces per object (0: keep every face)
+    max_overlap: float = 0.01      # what the limit shrink tolerates (the audit's threshold)
+
+
+def refine_meshes(obj: ArticulatedObject, config: Optional[RefineConfig] = None,
+                  frozen: frozenset = frozenset()) -> dict:
+    """Floaters, simplification, carving, joint limits on ``obj``'s meshes (in place).
+    Parts whose index is in ``frozen`` (kept parts of an edit) keep their meshes."""
+    from . import meshes as M
+
+    cfg = config or RefineConfig()
+    t0 = time.perf_counter()
+    mans = {k: m for k, m in M.manifolds_of(obj).items() if k not in frozen}
+    report: dict = {}
+    if cfg.floaters:
+        before = sum(len(m.decompose()) for m in mans.values())
+        mans = {k: M.drop_floaters(m) for k, m in mans.items()}
+        report["shells_dropped"] = before - sum(len(m.decompose()) for m in mans.values())
+    # 10 % headroom: carving adds faces after simplifying
+    mans, report["simplify_tolerance"] = M.simplify_to_budget(mans, int(0.9 * cfg.face_budget))
+    if cfg.floaters and report["simplify_tolerance"]:
+        mans = {k: M.drop_floaters(m) for k, m in mans.items()}   # simplifying can split
+    if cfg.carve:
+        carved = M.carve_parents(obj, mans)
+        for i, sweep in carved.items():
+            if obj.parts[i].collision:
+                obj.parts[i].collision = M.carve_collision(obj.parts[i].collision, sweep)
+        report["carved"] = sorted(obj.parts[i].name for i in carved)
+    M.store(obj, mans)
+    for i in mans:               # the boxes describe the meshes that get exported
+        obj.parts[i].fit_bbox_to_mesh()
+    if cfg.limits and not frozen:
+        report["limits_shrunk"] = M.shrink_limits(obj, mans, cfg.max_overlap)
+    report["faces"] = int(sum(m.num_tri() for m in mans.values()))
+    report["seconds"] = time.perf_counter() - t0
+    return report
+
+
+__all__ = ["RefineConfig", "LayoutConfig", "refine_layout", "refine_meshes", "face_of"]

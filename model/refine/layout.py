@@ -1,0 +1,401 @@
+"""Layout refinement: make a decoded tree's boxes and joints physically consistent before
+its meshes are made. Never changes the structure (labels, counts, joint types, parents).
+
+Steps, in order (each can be switched off for ablation through :class:`LayoutConfig`):
+
+1. ``snap`` — joint axes within ``snap_deg`` of a principal axis become that axis.
+2. ``attach`` — every part is given the face of its parent it belongs to (drawers, trays
+   and doors sit in it; handles, knobs, dials and buttons on it), is moved onto that face
+   and kept within the face's extent; an opening keeps a frame of the parent around it.
+3. ``align`` — repeated siblings on one face (a drawer stack, a knob row, a keypad) are
+   aligned on shared rows / columns with equal sizes; small parts that collide are spaced
+   evenly along their row.
+4. ``separate`` — siblings on one face whose boxes still overlap are cut apart in the face
+   plane at the middle of their overlap (a door as wide as the cabinet gives way to the
+   drawers beside it).
+5. ``joints`` — door and lid hinges go onto the box edge on the side the model chose,
+   turning outwards; drawers and trays slide along their face's normal, buttons into it,
+   knobs and dials turn about their own centre; travel stays within the part's depth.
+
+Boxes are axis-aligned in the object frame at rest (DESIGN §2), as the tokens are.
+"""
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from typing import Optional
+
+import numpy as np
+
+from model.core import ArticulatedObject, JointType
+
+log = logging.getLogger(__name__)
+
+SLIDERS = ("drawer", "tray")
+PANELS = ("door", "lid")
+ON_FACE = ("handle", "knob", "dial", "button")
+SMALL = ("knob", "dial", "button", "handle")
+GAP = 0.002            # m between separated siblings
+MIN_KEEP = 0.3         # a box keeps at least this share of its size when cut
+FRAME = 0.015          # m of the parent left around an opening (at least 4 % of its side)
+
+
+@dataclass
+class LayoutConfig:
+    snap: bool = True
+    attach: bool = True
+    align: bool = True
+    separate: bool = True
+    joints: bool = True
+    snap_deg: float = 25.0
+
+
+def _lohi(p) -> tuple[np.ndarray, np.ndarray]:
+    return p.bbox_center - p.bbox_size / 2, p.bbox_center + p.bbox_size / 2
+
+
+def _set(p, lo, hi) -> None:
+    lo, hi = np.minimum(lo, hi), np.maximum(lo, hi)
+    p.bbox_center = (lo + hi) / 2
+    p.bbox_size = np.maximum(hi - lo, 1e-4)
+
+
+def _principal(v) -> tuple[int, float]:
+    v = np.asarray(v, dtype=np.float64)
+    k = int(np.argmax(np.abs(v)))
+    return k, float(np.sign(v[k]) or 1.0)
+
+
+# ---------------------------------------------------------------------------------------------
+# faces
+# ---------------------------------------------------------------------------------------------
+def face_of(obj: ArticulatedObject, i: int) -> Optional[tuple[int, float]]:
+    """(axis, sign) of the parent face part ``i`` belongs to, or None (root, caps, others)."""
+    p = obj.parts[i]
+    if p.parent < 0:
+        return None
+    par = obj.parts[p.parent]
+    plo, phi = _lohi(par)
+    pc = (plo + phi) / 2
+    j = p.joint
+    if p.label in SLIDERS and j.type.translates:
+        k, s = _principal(j.axis)
+        return k, s * (1.0 if abs(j.t_range[1]) >= abs(j.t_range[0]) else -1.0)
+    if p.label == "button" and j.type.translates:
+        k, s = _principal(j.axis)
+        return k, -s * (1.0 if abs(j.t_range[1]) >= abs(j.t_range[0]) else -1.0)
+    if p.label in ("knob", "dial") and j.type.rotates:
+        k = _principal(j.axis)[0]
+        return k, float(np.sign(p.bbox_center[k] - pc[k]) or 1.0)
+    if p.label in PANELS:
+        k = int(np.argmin(p.bbox_size))
+        return k, float(np.sign(p.bbox_center[k] - pc[k]) or 1.0)
+    if p.label == "handle" or p.label in ON_FACE:
+        f = face_of(obj, p.parent)
+        if f is not None:
+            return f
+        # on the root: the parent face whose plane is nearest the part's centre
+        d = np.concatenate([phi - p.bbox_center, p.bbox_center - plo])
+        k = int(np.argmin(np.abs(d)))
+        return k % 3, 1.0 if k < 3 else -1.0
+    return None
+
+
+def _attach(obj: ArticulatedObject, i: int, face: tuple[int, float]) -> None:
+    """Move part ``i`` onto / into its parent's face and within the face's extent."""
+    p, par = obj.parts[i], obj.parts[obj.parts[i].parent]
+    k, s = face
+    lo, hi = _lohi(p)
+    plo, phi = _lohi(par)
+    plane = phi[k] if s > 0 else plo[k]
+    depth = hi[k] - lo[k]
+    if p.label in SLIDERS or p.label in PANELS:
+        # in the opening: outer side flush with the face (a drawer front may stand proud by
+        # up to 2 cm, as the model placed it), inner side inside the parent
+        outer = hi[k] if s > 0 else lo[k]
+        proud = float(np.clip((outer - plane) * s, 0.0, 0.02))
+        depth = min(depth, phi[k] - plo[k])
+        new_outer = plane + s * proud
+        lo[k], hi[k] = (new_outer - depth, new_outer) if s > 0 else (new_outer, new_outer + depth)
+    elif p.label == "button":
+        # half in its pocket, half proud of the face, unless the model put it across the face
+        if not (lo[k] < plane < hi[k]):
+            lo[k], hi[k] = plane - depth / 2, plane + depth / 2
+    else:
+        # on the face, touching it
+        lo[k], hi[k] = (plane, plane + depth) if s > 0 else (plane - depth, plane)
+    inset = p.label in SLIDERS or p.label in PANELS
+    for d in range(3):
+        if d == k:
+            continue
+        room = phi[d] - plo[d]
+        if inset:        # an opening leaves a frame of the parent around it
+            room -= 2 * min(max(FRAME, 0.04 * room), 0.25 * room)
+        size = min(hi[d] - lo[d], room)
+        margin = (phi[d] - plo[d] - room) / 2
+        c = float(np.clip((lo[d] + hi[d]) / 2, plo[d] + margin + size / 2,
+                          phi[d] - margin - size / 2))
+        lo[d], hi[d] = c - size / 2, c + size / 2
+    _set(p, lo, hi)
+
+
+# ---------------------------------------------------------------------------------------------
+# repeated parts and overlaps
+# ---------------------------------------------------------------------------------------------
+def _clusters(values: np.ndarray, tol: float) -> list[list[int]]:
+    order = np.argsort(values)
+    groups: list[list[int]] = []
+    for idx in order:
+        if groups and values[idx] - values[groups[-1][-1]] <= tol:
+            groups[-1].append(int(idx))
+        else:
+            groups.append([int(idx)])
+    return groups
+
+
+def _align(obj: ArticulatedObject, members: list[int], k: int) -> None:
+    """Rows and columns of same-label siblings on the face with normal axis ``k``: members
+    sharing a row get its mean coordinate and mean size across it."""
+    parts = [obj.parts[i] for i in members]
+    for d in (d for d in range(3) if d != k):
+        cs = np.array([p.bbox_center[d] for p in parts])
+        sizes = np.array([p.bbox_size[d] for p in parts])
+        for g in _clusters(cs, 0.35 * float(np.median(sizes))):
+            if len(g) < 2:
+                continue
+            c, size = float(cs[g].mean()), float(sizes[g].mean())
+            for m in g:
+                parts[m].bbox_center[d] = c
+                parts[m].bbox_size[d] = size
+    # same depth along the normal for the whole group
+    for d in (k,):
+        size = float(np.mean([p.bbox_size[d] for p in parts]))
+        c = float(np.median([p.bbox_center[d] for p in parts]))
+        for p in parts:
+            p.bbox_size[d], p.bbox_center[d] = size, c
+
+
+def _space_small(obj: ArticulatedObject, members: list[int], k: int) -> None:
+    """Small parts that collide are spread evenly along the in-face axis of their largest
+    spread, within their parent's face."""
+    parts = [obj.parts[i] for i in members]
+    if len(parts) < 2 or not any(_overlap(a, b) for n, a in enumerate(parts) for b in parts[n + 1:]):
+        return
+    ax = [d for d in range(3) if d != k]
+    cs = np.array([p.bbox_center for p in parts])
+    d = max(ax, key=lambda a: np.ptp(cs[:, a]))
+    other = [a for a in ax if a != d][0]
+    # a grid when the other axis has distinct rows: space within each row only
+    rows = _clusters(cs[:, other], 0.5 * float(np.median([p.bbox_size[other] for p in parts])))
+    plo, phi = _lohi(obj.parts[parts[0].parent])
+    for row in rows:
+        if len(row) < 2:
+            continue
+        row = sorted(row, key=lambda m: cs[m, d])
+        size = max(parts[m].bbox_size[d] for m in row)
+        pitch = max(size + GAP * 2, (cs[row[-1], d] - cs[row[0], d]) / (len(row) - 1))
+        span = pitch * (len(row) - 1) + size
+        room = phi[d] - plo[d]
+        if span > room:                      # too many for the face: shrink to fit
+            pitch = room / len(row)
+            size = min(size, pitch - GAP)
+            span = pitch * (len(row) - 1) + size
+        mid = float(np.clip(cs[row, d].mean(), plo[d] + span / 2, phi[d] - span / 2))
+        for n, m in enumerate(row):
+            parts[m].bbox_center[d] = mid - pitch * (len(row) - 1) / 2 + n * pitch
+            parts[m].bbox_size[d] = size
+
+
+def _overlap(a, b, pad: float = 0.0) -> bool:
+    alo, ahi = _lohi(a)
+    blo, bhi = _lohi(b)
+    return bool(np.all(alo < bhi - pad) and np.all(blo < ahi - pad))
+
+
+def _union(parts) -> tuple[np.ndarray, np.ndarray]:
+    return (np.min([_lohi(p)[0] for p in parts], axis=0),
+            np.max([_lohi(p)[1] for p in parts], axis=0))
+
+
+def _separate(first_group: list, second_group: list, k: int) -> bool:
+    """Cut two groups of sibling boxes apart in the face plane (normal axis ``k``) along the
+    in-face axis where their union boxes already stand furthest apart (centre distance over
+    mean size): stacked drawers split vertically, a door beside a drawer column sideways.
+    Each box keeps at least MIN_KEEP of its size. Returns whether they overlapped."""
+    alo, ahi = _union(first_group)
+    blo, bhi = _union(second_group)
+    if not (np.all(alo < bhi - GAP / 4) and np.all(blo < ahi - GAP / 4)):
+        return False
+    ac, bc = (alo + ahi) / 2, (blo + bhi) / 2
+    d = max((d for d in range(3) if d != k),
+            key=lambda d: abs(ac[d] - bc[d]) / max((ahi[d] - alo[d] + bhi[d] - blo[d]) / 2, 1e-9))
+    low, high = (first_group, second_group) if ac[d] <= bc[d] else (second_group, first_group)
+    cut = (max(alo[d], blo[d]) + min(ahi[d], bhi[d])) / 2
+    for p in low:
+        lo, hi = _lohi(p)
+        hi[d] = min(hi[d], max(cut - GAP / 2, lo[d] + MIN_KEEP * (hi[d] - lo[d])))
+        _set(p, lo, hi)
+    for p in high:
+        lo, hi = _lohi(p)
+        lo[d] = max(lo[d], min(cut + GAP / 2, hi[d] - MIN_KEEP * (hi[d] - lo[d])))
+        _set(p, lo, hi)
+    return True
+
+
+# ---------------------------------------------------------------------------------------------
+# joints
+# ---------------------------------------------------------------------------------------------
+def _hinge(obj: ArticulatedObject, i: int, face: tuple[int, float]) -> None:
+    """Door / lid: axis along a box edge of the outer face, on the side nearest the
+    predicted origin, turning so that positive angles swing the panel outwards."""
+    p = obj.parts[i]
+    j = p.joint
+    k, s = face
+    lo, hi = _lohi(p)
+    a = _principal(j.axis)[0]
+    if a == k:           # an axis along the face normal cannot hinge a panel: keep the
+        ins = [d for d in range(3) if d != k]        # longer in-face edge instead
+        a = max(ins, key=lambda d: p.bbox_size[d])
+    u = [d for d in range(3) if d not in (a, k)][0]
+    side = lo[u] if abs(j.origin[u] - lo[u]) <= abs(j.origin[u] - hi[u]) else hi[u]
+    origin = p.bbox_center.copy()
+    origin[k] = hi[k] if s > 0 else lo[k]
+    origin[u] = side
+    axis = np.eye(3)[a]
+    free = p.bbox_center.copy()
+    free[u] = hi[u] if side == lo[u] else lo[u]
+    if np.cross(axis, free - origin)[k] * s < 0:
+        axis = -axis
+    lo_r, hi_r = j.r_range
+    j.origin, j.axis = origin, axis
+    j.r_range = (0.0, float(max(abs(lo_r), abs(hi_r))))
+
+
+def _slide(obj: ArticulatedObject, i: int, face: tuple[int, float]) -> None:
+    p = obj.parts[i]
+    j = p.joint
+    k, s = face
+    travel = float(max(abs(j.t_range[0]), abs(j.t_range[1])))
+    if p.label in SLIDERS:
+        j.axis = np.eye(3)[k] * s
+        travel = min(travel, 0.9 * float(p.bbox_size[k]))      # stays in its opening
+    else:                                                     # buttons press in
+        j.axis = -np.eye(3)[k] * s
+        travel = min(travel, 0.5 * float(p.bbox_size[k]))
+    j.t_range = (0.0, travel)
+    j.origin = p.bbox_center.copy()
+
+
+def _spin(obj: ArticulatedObject, i: int, face: tuple[int, float]) -> None:
+    p = obj.parts[i]
+    k, s = face
+    sign = _principal(p.joint.axis)[1]
+    p.joint.axis = np.eye(3)[k] * sign
+    p.joint.origin = p.bbox_center.copy()
+
+
+def _snap(obj: ArticulatedObject, deg: float) -> None:
+    for i in obj.movable_parts():
+        j = obj.parts[i].joint
+        a = np.asarray(j.axis, dtype=np.float64)
+        k, s = _principal(a)
+        if np.degrees(np.arccos(min(1.0, abs(a[k]) / max(np.linalg.norm(a), 1e-12)))) <= deg:
+            j.axis = np.eye(3)[k] * s
+
+
+# ---------------------------------------------------------------------------------------------
+def refine_layout(obj: ArticulatedObject, config: Optional[LayoutConfig] = None) -> dict:
+    """Refine ``obj``'s boxes and joints in place (before meshing); returns what changed."""
+    cfg = config or LayoutConfig()
+    report = {"snapped": 0, "attached": 0, "aligned_groups": 0, "separated": 0, "joints": 0}
+    if cfg.snap:
+        before = [obj.parts[i].joint.axis.copy() for i in obj.movable_parts()]
+        _snap(obj, cfg.snap_deg)
+        report["snapped"] = int(sum(not np.allclose(b, obj.parts[i].joint.axis)
+                                    for b, i in zip(before, obj.movable_parts())))
+    order = obj.topological_order()            # parents first: children follow moved parents
+    for i in order:
+        face = face_of(obj, i)
+        if face is None:
+            continue
+        if cfg.attach:
+            _attach(obj, i, face)
+            report["attached"] += 1
+    _siblings(obj, cfg, report)
+    if cfg.joints:
+        for i in obj.movable_parts():
+            face = face_of(obj, i)
+            if face is None:
+                continue
+            p = obj.parts[i]
+            if p.label in PANELS and p.joint.type == JointType.REVOLUTE:
+                _hinge(obj, i, face)
+            elif p.joint.type == JointType.PRISMATIC and p.label in SLIDERS + ("button",):
+                _slide(obj, i, face)
+            elif p.label in ("knob", "dial") and p.joint.type in (JointType.REVOLUTE,
+                                                                   JointType.CONTINUOUS):
+                _spin(obj, i, face)
+            else:
+                continue
+            report["joints"] += 1
+    return report
+
+
+def _separate_all(obj: ArticulatedObject, members: list[int], k: int) -> int:
+    """Repeated parts among themselves first (a stack splits into rows), then each label's
+    group against each other's, then any pair left."""
+    by_label: dict[str, list] = {}
+    for c in members:
+        by_label.setdefault(obj.parts[c].label, []).append(obj.parts[c])
+    groups = list(by_label.values())
+    n = 0
+    for _ in range(3):
+        hit = 0
+        for g in groups:
+            for a_i, a in enumerate(g):
+                for b in g[a_i + 1:]:
+                    hit += _separate([a], [b], k)
+        for a_i, a in enumerate(groups):
+            for b in groups[a_i + 1:]:
+                hit += _separate(a, b, k)
+        parts = [obj.parts[c] for c in members]
+        for a_i, a in enumerate(parts):
+            for b in parts[a_i + 1:]:
+                hit += _separate([a], [b], k)
+        n += hit
+        if not hit:
+            break
+    return n
+
+
+def _siblings(obj: ArticulatedObject, cfg: LayoutConfig, report: dict) -> None:
+    """Align repeated parts and cut overlapping siblings apart, parent by parent; children
+    of a changed part are re-attached to it afterwards."""
+    for par in obj.topological_order():
+        faces: dict[tuple, list[int]] = {}
+        for c in obj.children(par):
+            f = face_of(obj, c)
+            if f is not None:
+                faces.setdefault(f, []).append(c)
+        for (k, s), members in faces.items():
+            if cfg.align:
+                by_label: dict[str, list[int]] = {}
+                for c in members:
+                    by_label.setdefault(obj.parts[c].label, []).append(c)
+                for label, same in by_label.items():
+                    if len(same) >= 2:
+                        _align(obj, same, k)
+                        if label in SMALL:
+                            _space_small(obj, same, k)
+                        report["aligned_groups"] += 1
+            if cfg.separate:
+                report["separated"] += _separate_all(obj, members, k)
+            if cfg.attach:
+                for c in members:
+                    for g in obj.children(c):
+                        f = face_of(obj, g)
+                        if f is not None:
+                            _attach(obj, g, f)
+
+
+__all__ = ["LayoutConfig", "refine_layout", "face_of"]

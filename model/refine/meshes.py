@@ -1,0 +1,220 @@
+"""Mesh refinement after meshing: drop floaters, simplify to a face budget, carve each parent
+where a moving child passes through it, and shrink a joint's range only where its sweep
+still collides. Exact booleans through manifold3d; every output mesh is a closed manifold.
+"""
+from __future__ import annotations
+
+import logging
+from typing import Optional
+
+import numpy as np
+
+from model.core import ArticulatedObject, JointType, meshops
+
+log = logging.getLogger(__name__)
+
+
+def _T34(T: np.ndarray) -> np.ndarray:
+    return np.ascontiguousarray(T[:3, :4], dtype=np.float64)
+
+
+def drop_floaters(man, min_share: float = 0.01):
+    """Keep the shells of a Manifold holding at least ``min_share`` of its volume and of its
+    surface (inside-out shells, i.e. enclosed voids, and specks go)."""
+    mf = meshops._mf()
+    shells = man.decompose()
+    if len(shells) <= 1:
+        return man
+    vols = np.array([float(s.volume()) for s in shells])
+    areas = np.array([float(s.surface_area()) for s in shells])
+    keep = [s for s, v, a in zip(shells, vols, areas)
+            if v > 0 and (v >= min_share * vols[vols > 0].sum() and a >= min_share * areas.sum())]
+    if not keep:
+        keep = [shells[int(np.argmax(vols))]]
+    return keep[0] if len(keep) == 1 else mf.Manifold.compose(keep)
+
+
+def simplify_to_budget(mans: dict, budget: int, tolerances=(0.001, 0.002, 0.004, 0.008)
+                       ) -> tuple[dict, float]:
+    """Simplify every Manifold, step by step through ``tolerances`` (m), until the total
+    face count is within ``budget``; returns the meshes and the last tolerance used (0:
+    untouched). Each step starts from the previous one's meshes (fast: the first step
+    removes most faces), so the deviation stays under the sum of the steps used."""
+    out, used = mans, 0.0
+    for tol in tolerances:
+        if budget <= 0 or sum(m.num_tri() for m in out.values()) <= budget:
+            break
+        out, used = {k: m.simplify(tol) for k, m in out.items()}, tol
+    return out, used
+
+
+def _subtree(obj: ArticulatedObject, k: int) -> list[int]:
+    out, todo = [], [k]
+    while todo:
+        i = todo.pop()
+        out.append(i)
+        todo.extend(obj.children(i))
+    return out
+
+
+HULL_SWEEP = ("drawer", "tray", "door", "lid")
+
+
+def swept_hull(obj: ArticulatedObject, mans: dict, k: int, states: int = 8):
+    """Union over ``states`` openness ratios of joint ``k`` of its moving subtree. Drawers,
+    trays, doors and lids sweep as convex hulls (their inside is theirs: a drawer's cavity,
+    exact for a box that slides); other parts (a cap around its neck, a knob) as their own
+    meshes, so what they enclose stays."""
+    mf = meshops._mf()
+    sub = [i for i in _subtree(obj, k) if i in mans]
+    if not sub:
+        return None
+    hull = obj.parts[k].label in HULL_SWEEP
+    ratios = [0.0, 1.0] if obj.parts[k].joint.type == JointType.PRISMATIC and hull \
+        else np.linspace(0, 1, states if hull else 2 * states)
+    pieces = []
+    for r in ratios:
+        T = obj.link_transforms(ratio={obj.parts[k].name: float(r)})
+        for i in sub:
+            m = mans[i].transform(_T34(T[obj.parts[i].name]))
+            pieces.append(m.hull() if hull else m)
+    return mf.Manifold.batch_boolean(pieces, mf.OpType.Add)
+
+
+def carve_parents(obj: ArticulatedObject, mans: dict) -> dict[int, object]:
+    """Subtract from each moving part's parent the space its subtree sweeps. Returns the
+    sweep (a Manifold) subtracted from each parent that changed."""
+    mf = meshops._mf()
+    carved: dict[int, object] = {}
+    for k in obj.movable_parts():
+        par = obj.parts[k].parent
+        if par < 0 or par not in mans:
+            continue
+        sweep = swept_hull(obj, mans, k)
+        if sweep is None or sweep.is_empty():
+            continue
+        before = float(mans[par].volume())
+        cut = mf.Manifold.batch_boolean([mans[par], sweep], mf.OpType.Subtract)
+        if cut.is_empty():
+            log.debug("carving %s would empty it; left alone", obj.parts[par].name)
+            continue
+        if float(cut.volume()) < before - 1e-12:
+            mans[par] = drop_floaters(cut)
+            carved[par] = sweep if par not in carved else carved[par] + sweep
+    return carved
+
+
+def carve_collision(pieces: list, sweep) -> list:
+    """A part's collision pieces minus a swept volume's bounding box: an axis-aligned box
+    splits into at most six boxes (exact, microseconds); another convex piece that the
+    sweep reaches is replaced by the hull of what is left of it."""
+    import trimesh
+
+    from model.export.collision import is_box
+    clo, chi = np.asarray(sweep.bounding_box()).reshape(2, 3)
+    out = []
+    for piece in pieces:
+        lo, hi = np.asarray(piece.bounds, dtype=np.float64)
+        if np.any(lo >= chi) or np.any(clo >= hi):
+            out.append(piece)
+            continue
+        if not is_box(piece):
+            rest = meshops.to_manifold(piece, fallback="hull") - sweep
+            if not rest.is_empty() and float(rest.volume()) > 1e-9:
+                out.append(meshops.to_trimesh(rest.hull()))
+            continue
+        for blo, bhi in _box_minus_box(lo, hi, clo, chi):
+            if np.all(bhi - blo > 1e-3):
+                out.append(trimesh.primitives.Box(
+                    extents=bhi - blo, transform=trimesh.transformations.translation_matrix(
+                        (blo + bhi) / 2)))
+    return out
+
+
+def _box_minus_box(lo, hi, clo, chi) -> list[tuple[np.ndarray, np.ndarray]]:
+    """[lo, hi] minus [clo, chi] as at most six disjoint axis-aligned boxes."""
+    lo, hi = lo.copy(), hi.copy()
+    out = []
+    for d in range(3):
+        if clo[d] > lo[d]:
+            b_hi = hi.copy()
+            b_hi[d] = clo[d]
+            out.append((lo.copy(), b_hi))
+            lo[d] = clo[d]
+        if chi[d] < hi[d]:
+            b_lo = lo.copy()
+            b_lo[d] = chi[d]
+            out.append((b_lo, hi.copy()))
+            hi[d] = chi[d]
+    return out
+
+
+def shrink_limits(obj: ArticulatedObject, mans: dict, max_overlap: float = 0.01,
+                  states: int = 10) -> int:
+    """Each joint alone: where its sweep collides (intersection over the smaller volume
+    above ``max_overlap``) or dips under the floor the object stands on, the range ends at
+    the last free state."""
+    from model.metrics.audit import checked_pairs
+
+    vol = {i: max(float(m.volume()), 1e-15) for i, m in mans.items()}
+    pairs = [(i, j) for i, j in checked_pairs(obj) if i in mans and j in mans]
+    ground = min(float(m.bounding_box()[2]) for m in mans.values()) - 0.002 if mans else 0.0
+    shrunk = 0
+    ratios = np.linspace(0.0, 1.0, states)[1:]
+    for k in obj.movable_parts():
+        sub = set(_subtree(obj, k))
+        todo = [(i, j) for i, j in pairs if (i in sub) != (j in sub)]
+        last = 0.0
+        for r in ratios:
+            T = obj.link_transforms(ratio={obj.parts[k].name: float(r)})
+            if _collides(obj, mans, vol, todo, T, max_overlap) or \
+                    _below_ground(obj, mans, sub, T, ground):
+                break
+            last = float(r)
+        else:
+            continue
+        j = obj.parts[k].joint
+        if last <= 0.0:
+            continue               # blocked from the start: a layout fault, not a range
+        lo_t, hi_t = j.t_range
+        lo_r, hi_r = j.r_range
+        j.t_range = (lo_t, lo_t + last * (hi_t - lo_t))
+        j.r_range = (lo_r, lo_r + last * (hi_r - lo_r))
+        shrunk += 1
+    return shrunk
+
+
+def _below_ground(obj, mans, sub, T, ground: float) -> bool:
+    return any(float(mans[i].transform(_T34(T[obj.parts[i].name])).bounding_box()[2]) < ground
+               for i in sub if i in mans)
+
+
+def _collides(obj, mans, vol, pairs, T, max_overlap) -> bool:
+    posed = {}
+    for i, j in pairs:
+        for n in (i, j):
+            if n not in posed:
+                posed[n] = mans[n].transform(_T34(T[obj.parts[n].name]))
+        ba, bb = posed[i].bounding_box(), posed[j].bounding_box()
+        if any(ba[d] >= bb[d + 3] or bb[d] >= ba[d + 3] for d in range(3)):
+            continue
+        if float((posed[i] ^ posed[j]).volume()) / min(vol[i], vol[j]) > max_overlap:
+            return True
+    return False
+
+
+def manifolds_of(obj: ArticulatedObject) -> dict:
+    out = {}
+    for i, p in enumerate(obj.parts):
+        if p.mesh is not None and len(p.mesh.faces):
+            out[i] = meshops.to_manifold(p.mesh, fallback="hull")
+    return out
+
+
+def store(obj: ArticulatedObject, mans: dict) -> None:
+    for i, m in mans.items():
+        obj.parts[i].mesh = meshops.to_trimesh(m)
+
+
+__all__ = ["drop_floaters", "simplify_to_budget", "carve_parents", "carve_collision", "shrink_limits",
+           "swept_hull", "manifolds_of", "store"]

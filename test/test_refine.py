@@ -1,0 +1,105 @@
+"""Refinement: layout fixes on decoded-like boxes and mesh fixes on solid meshes, never a
+change of structure; the audit passes afterwards."""
+import numpy as np
+import pytest
+import trimesh
+
+from model.core import ArticulatedObject, Joint, JointType, Part
+from model.metrics.audit import AuditConfig, audit_object, hinge_offset
+from model.refine import RefineConfig, refine_layout, refine_meshes
+
+GEOMETRY_ONLY = AuditConfig(physics=False)
+
+
+def _part(name, label, parent, size, centre, joint=None):
+    return Part(name=name, label=label, parent=parent, bbox_center=centre, bbox_size=size,
+                joint=joint or Joint())
+
+
+def _sloppy_cabinet() -> ArticulatedObject:
+    """What a decoder gets wrong: two drawers overlapping, a door as wide as the body over
+    them, a hinge 8 cm off the edge and tilted, a drawer axis 10 degrees off, a handle
+    floating in front of its drawer."""
+    tilt = np.array([0.0, -0.12, -0.99])
+    return ArticulatedObject(category="StorageFurniture", name="sloppy", parts=[
+        _part("body_0", "body", -1, (0.5, 1.0, 1.0), (0, 0, 0.5)),
+        _part("door_0", "door", 0, (0.01, 0.96, 0.6), (0.245, 0.0, 0.45),
+              Joint(JointType.REVOLUTE, (0.24, -0.40, 0.46), tilt / np.linalg.norm(tilt),
+                    r_range=(0, 1.6))),
+        _part("drawer_0", "drawer", 0, (0.45, 0.5, 0.3), (0.03, 0.25, 0.65),
+              Joint(JointType.PRISMATIC, (0.2, 0.25, 0.65), (0.985, 0.0, 0.17),
+                    t_range=(0, 0.35))),
+        _part("drawer_1", "drawer", 0, (0.45, 0.5, 0.3), (0.03, 0.25, 0.45),
+              Joint(JointType.PRISMATIC, (0.2, 0.25, 0.45), (1.0, 0.0, 0.0), t_range=(0, 0.35))),
+        _part("handle_0", "handle", 2, (0.03, 0.15, 0.03), (0.32, 0.25, 0.65)),
+    ])
+
+
+def _structure(obj):
+    return [(p.label, p.parent, p.joint.type) for p in obj.parts]
+
+
+def _boxes_overlap(a, b):
+    alo, ahi = a.bbox_center - a.bbox_size / 2, a.bbox_center + a.bbox_size / 2
+    blo, bhi = b.bbox_center - b.bbox_size / 2, b.bbox_center + b.bbox_size / 2
+    return bool(np.all(alo < bhi - 1e-6) and np.all(blo < ahi - 1e-6))
+
+
+def test_layout_fixes_siblings_hinges_axes_and_keeps_structure():
+    obj = _sloppy_cabinet()
+    before = _structure(obj)
+    rep = refine_layout(obj)
+    assert _structure(obj) == before
+    door, d0, d1, handle = obj.parts[1:]
+    for a, b in [(door, d0), (door, d1), (d0, d1)]:
+        assert not _boxes_overlap(a, b), (a.name, b.name)
+    assert np.allclose(np.abs(door.joint.axis), [0, 0, 1])
+    assert hinge_offset(door) == pytest.approx(0.0, abs=1e-9)
+    assert door.joint.origin[1] == pytest.approx(door.bbox_center[1] - door.bbox_size[1] / 2)
+    assert np.allclose(d0.joint.axis, [1, 0, 0]) and np.allclose(d1.joint.axis, [1, 0, 0])
+    # the drawers share a column: same width and y; the handle sits on the drawer front
+    assert d0.bbox_size[1] == pytest.approx(d1.bbox_size[1])
+    assert handle.bbox_center[0] - handle.bbox_size[0] / 2 == pytest.approx(
+        d0.bbox_center[0] + d0.bbox_size[0] / 2)
+    # a positive angle swings the door's free edge outwards (+x)
+    T = obj.link_transforms({"door_0": 0.5})["door_0"]
+    free = door.bbox_center.copy()
+    free[1] = door.bbox_center[1] + door.bbox_size[1] / 2
+    assert (T[:3, :3] @ free + T[:3, 3])[0] > free[0]
+    assert rep["separated"] >= 1 and rep["snapped"] >= 2
+
+
+def _meshed(obj, solid_body=True):
+    for p in obj.parts:
+        m = trimesh.creation.box(extents=p.bbox_size)
+        m.apply_translation(p.bbox_center)
+        p.mesh = m
+    return obj
+
+
+def test_meshes_carve_a_solid_body_and_the_audit_passes():
+    obj = _sloppy_cabinet()
+    refine_layout(obj)
+    _meshed(obj)
+    raw = audit_object(obj.copy(), config=GEOMETRY_ONLY)
+    assert raw.max_overlap > 0.5          # solid drawers and door inside a solid body
+    rep = refine_meshes(obj)
+    assert "body_0" in rep["carved"]
+    after = audit_object(obj, config=GEOMETRY_ONLY)
+    assert after.sim_ready, after.failures
+    assert _structure(obj) == _structure(_sloppy_cabinet())
+
+
+def test_floaters_dropped_and_face_budget_kept():
+    obj = _meshed(_sloppy_cabinet())
+    body = obj.parts[0]
+    speck = trimesh.creation.box(extents=(0.005, 0.005, 0.005))
+    speck.apply_translation((2, 2, 2))
+    body.mesh = trimesh.util.concatenate([trimesh.creation.icosphere(5, radius=0.5), speck])
+    body.mesh.apply_translation((0, 0, 0.5))
+    n0 = sum(len(p.mesh.faces) for p in obj.parts)
+    rep = refine_meshes(obj, RefineConfig(face_budget=2000, carve=False, limits=False))
+    faces = sum(len(p.mesh.faces) for p in obj.parts)
+    assert n0 > 10000 and faces <= 2000 and rep["shells_dropped"] >= 1
+    assert len(obj.parts[0].mesh.split(only_watertight=False)) == 1
+    assert obj.parts[0].mesh.is_watertight
