@@ -4,8 +4,7 @@ import pytest
 import torch
 
 from model.encoders.image import (IMAGE_SIZE, ImageEncoder, ImageEncoderConfig, ImageInputError,
-                                  encode_image_condition, get_image_encoder, preprocess,
-                                  to_rgb_float)
+                                  get_image_encoder, preprocess, to_rgb_float)
 
 torch.set_num_threads(1)
 
@@ -32,15 +31,15 @@ def test_real_imagenet_weights_recognise_a_cat(cat):
 
 
 def test_condition_tokens_shape_and_mask(cat):
-    tokens, mask = encode_image_condition(cat)
+    enc = get_image_encoder()
+    out = enc.encode(cat)
+    tokens, mask = out.states, out.mask
     assert tokens.shape == (1, 49, 1280) and tokens.dtype == torch.float32
     assert mask.shape == (1, 49) and mask.dtype == torch.bool and bool(mask.all())
     assert torch.isfinite(tokens).all() and float(tokens.std()) > 0.1
     # the frozen encoder has no trainable parameters and is deterministic
-    enc = get_image_encoder()
     assert not any(p.requires_grad for p in enc.parameters())
-    again, _ = encode_image_condition(cat)
-    assert torch.equal(tokens, again)
+    assert torch.equal(tokens, enc.encode(cat).states)
     batch = enc.encode([cat, cat[:, ::-1]])
     assert batch.states.shape == (2, 49, 1280) and batch.pooled.shape == (2, 1280)
 
@@ -78,7 +77,7 @@ def test_file_inputs_and_clear_errors(tmp_path, cat):
     junk = tmp_path / "broken.png"
     junk.write_bytes(b"this is not an image at all")
     with pytest.raises(ImageInputError, match="cannot read"):
-        encode_image_condition(str(junk))
+        get_image_encoder().encode(str(junk))
     with pytest.raises(ImageInputError, match="does not exist"):
         preprocess(tmp_path / "missing.jpg")
     with pytest.raises(ImageInputError, match="folder"):

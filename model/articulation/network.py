@@ -263,9 +263,6 @@ class ArticulationTransformer(nn.Module):
         self.head_plan = (nn.Linear(d, len(cfg.count_labels) * (cfg.plan_max_count + 1))
                           if cfg.plan_head and cfg.count_labels else None)
 
-    def num_params(self) -> int:
-        return sum(p.numel() for p in self.parameters())
-
     def child_counts(self, batch: TreeBatch) -> torch.Tensor:
         """How many children each token already has, in total and per label: (B, N, 1+T)/4.
         START counts the root as its child."""

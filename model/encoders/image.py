@@ -19,7 +19,7 @@ how the image trainer keeps fine-tuning cheap on a CPU. BatchNorm statistics alw
 frozen (batches here are small).
 
     enc = get_image_encoder()
-    tokens, mask = encode_image_condition("photo.png")      # (1, 49, 1280), (1, 49) bool
+    out = enc.encode("photo.png")          # out.states (1, 49, 1280), out.mask (1, 49) bool
 """
 from __future__ import annotations
 
@@ -373,17 +373,3 @@ class ImageEncoder(torch.nn.Module):
 def get_image_encoder(weights: str = "imagenet") -> ImageEncoder:
     """Process-wide cached frozen encoder (loading costs ~0.3 s)."""
     return ImageEncoder(ImageEncoderConfig(weights=weights))
-
-
-def encode_image_condition(image: ImageLike, encoder: ImageEncoder | None = None
-                           ) -> tuple[torch.Tensor, torch.Tensor]:
-    """One image → (tokens (1, 49, 1280) float32, mask (1, 49) bool) for cross-attention.
-
-    ``encoder`` defaults to the frozen ImageNet encoder; pass the one of a loaded image
-    checkpoint (``model.imaging.load_image_model(...).encoder``) when it was fine-tuned.
-    """
-    if isinstance(image, (list, tuple)):
-        raise ImageInputError("encode_image_condition takes one image; use ImageEncoder.encode for a batch")
-    enc = encoder if encoder is not None else get_image_encoder()
-    out = enc.encode(image)
-    return out.states, out.mask

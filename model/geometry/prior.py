@@ -188,18 +188,3 @@ class ShapePrior(nn.Module):
                                        (geo, c_s.float()), steps=steps, guidance=guidance,
                                        generator=generator)
         return self.denormalise(x)
-
-    @torch.inference_mode()
-    def sample_unconditional_codes(self, c_s: torch.Tensor, *, steps: int = 50,
-                                   guidance: float = 1.0,
-                                   generator: Optional[torch.Generator] = None) -> torch.Tensor:
-        """c_s (B, S) only (geometry condition dropped) -> raw z (B, Z)."""
-        B = c_s.shape[0]
-        geo = self.denoiser.null_geo.expand(B, -1, -1)
-        cond = (geo, c_s.float())
-
-        def model(x, t, cond_, drop):
-            return self.denoiser(x, t, cond_, torch.maximum(drop, torch.full_like(drop, DROP_GEO)))
-        x = self.diffusion.ddim_sample(model, (B, self.cfg.z_dim), cond, steps=steps,
-                                       guidance=guidance, generator=generator)
-        return self.denormalise(x)

@@ -153,12 +153,3 @@ def _checkpoint_count_head(p: Path, ckpt: dict, key: str, am, encoder: ImageEnco
         raise ImageModelError(f"{p}: the {what} reads block {head.cfg.split}, which this "
                               f"checkpoint's encoder fine-tuned")
     return head
-
-
-def encode_image_condition(image: ImageLike, model: Optional[ImageArticulationModel] = None
-                           ) -> tuple[torch.Tensor, torch.Tensor]:
-    """One image → (tokens (1, 49, D), mask (1, 49)); with ``model`` its (fine-tuned) encoder."""
-    if model is None:
-        from model.encoders.image import encode_image_condition as frozen
-        return frozen(image)
-    return model.encode(image)
