@@ -197,3 +197,23 @@ def test_continuous_joint_and_primitives(tmp_path):
     lift = m.body("base").pos[2]
     assert np.allclose(d.xpos[m.body("wheel").id] - [0, 0, lift], [0.2, 0.12, -0.05], atol=1e-9)
     assert drive_check(res.scene_xml, res.joints).ok
+
+
+def test_flat_visual_kept_degenerate_collision_dropped(tmp_path):
+    import trimesh
+    (tmp_path / "meshes").mkdir()
+    trimesh.Trimesh(vertices=[[0, 0, 0], [0.2, 0, 0], [0, 0.2, 0], [0.2, 0.2, 0]],
+                    faces=[[0, 1, 2], [1, 3, 2]]).export(tmp_path / "meshes" / "panel.obj")
+    trimesh.Trimesh(vertices=[[0, 0, 0], [0.1, 0, 0], [0, 0.1, 0]],
+                    faces=[[0, 1, 2]]).export(tmp_path / "meshes" / "sliver.obj")
+    (tmp_path / "p.urdf").write_text(
+        "<robot name='p'><link name='base'><inertial><mass value='1'/>"
+        "<inertia ixx='0.01' iyy='0.01' izz='0.01' ixy='0' ixz='0' iyz='0'/></inertial>"
+        "<visual><geometry><mesh filename='meshes/panel.obj'/></geometry></visual>"
+        "<collision><geometry><mesh filename='meshes/sliver.obj'/></geometry></collision>"
+        "<collision><geometry><box size='0.2 0.2 0.01'/></geometry></collision></link></robot>")
+    res = export_mjcf(tmp_path)
+    assert res.dropped_meshes == ["base: sliver.obj"]
+    m = mujoco.MjModel.from_xml_path(res.scene_xml)
+    types = [mujoco.mjtGeom(t).name for t, b in zip(m.geom_type, m.geom_bodyid) if b > 0]
+    assert sorted(types) == ["mjGEOM_BOX", "mjGEOM_MESH"]      # the flat panel is shown

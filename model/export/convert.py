@@ -66,8 +66,9 @@ def _print_mjcf(res, check: bool) -> int:
     print(f"scene:     {res.scene_xml}")
     print(f"joints:    {len(res.joints)}  actuators: {len(res.actuators)}"
           f"{'  screw couplings: ' + str(len(res.couplings)) if res.couplings else ''}")
-    if res.dropped_visuals:
-        print(f"left out (flat visual meshes): {', '.join(res.dropped_visuals)}")
+    if res.dropped_meshes:
+        print(f"left out ({len(res.dropped_meshes)} meshes MuJoCo cannot compile): "
+              f"{', '.join(res.dropped_meshes[:5])}{' ...' if len(res.dropped_meshes) > 5 else ''}")
     if not check:
         return 0
     from .mjcf import drive_check

@@ -34,14 +34,16 @@ Mapping from the URDF:
   bodies whose collision geometry already interpenetrates at rest (more than
   ``exclude_depth``) are excluded too, so that a model whose parts touch does not start in
   contact and jam. Parts that only meet while moving still collide.
-* Visual meshes MuJoCo cannot compile (flat, fewer than 4 vertices) are left out and logged,
-  as the URDF's own MuJoCo hint does. Their collision pieces stay.
+* Visual meshes are compiled with ``inertia="shell"`` (the body inertials are explicit), so
+  flat panels load. Meshes MuJoCo still cannot compile (fewer than 4 vertices, a collision
+  piece without a volume) are left out and logged (``MJCFResult.dropped_meshes``).
 """
 from __future__ import annotations
 
 import logging
 import math
 import os
+import re
 import shutil
 import tempfile
 from dataclasses import dataclass, field
@@ -71,7 +73,7 @@ class MJCFResult:
     actuators: list[str]
     couplings: dict[str, str] = field(default_factory=dict)   # slide joint -> hinge joint
     excluded_pairs: list[tuple[str, str]] = field(default_factory=list)
-    dropped_visuals: list[str] = field(default_factory=list)
+    dropped_meshes: list[str] = field(default_factory=list)   # "link: file" MuJoCo cannot compile
 
 
 def _fmt(v) -> str:
@@ -99,29 +101,41 @@ def _screw_pairs(model: URDFModel) -> dict[str, tuple[Joint, Joint]]:
     return out
 
 
-def _mesh_ok(mesh) -> bool:
-    from .collision import is_solid_enough
-    return is_solid_enough(mesh)
+def _mesh_ok(mesh, role: str) -> bool:
+    """Can MuJoCo compile this mesh? Visual meshes (``inertia="shell"``, no contacts) need
+    4 vertices; collision meshes need a convex hull with a volume (measured errors: "at least
+    4 vertices required", "qhull error" on flat collision meshes; flat visual meshes compile
+    with shell inertia)."""
+    if mesh is None or len(mesh.vertices) < 4 or len(mesh.faces) == 0:
+        return False
+    if role == "visual":
+        return True
+    try:
+        return bool(mesh.convex_hull.volume > 0.0)
+    except Exception:  # qhull fails on flat / collinear input
+        return False
 
 
 class _Assets:
-    """Mesh files copied (or converted to OBJ) into assets/, one <mesh> asset per file+scale."""
+    """Mesh files copied (or converted to OBJ) into assets/, one <mesh> asset per file, scale
+    and role (visual meshes get ``inertia="shell"`` so flat panels compile)."""
 
     def __init__(self, folder: Path):
         self.folder = folder
-        self.names: dict[tuple, str] = {}
+        self.names: dict[tuple, Optional[str]] = {}
         self.used: set[str] = set()
-        self.entries: list[tuple[str, str, np.ndarray]] = []     # (name, file, scale)
-        self.solid: dict[tuple, bool] = {}
+        self.entries: list[tuple[str, str, np.ndarray, str]] = []   # (name, file, scale, role)
 
-    def add(self, g: Geom) -> Optional[str]:
+    def add(self, g: Geom, role: str) -> Optional[str]:
         """Asset name of a mesh geom, or None when MuJoCo cannot compile the mesh."""
         from .urdfmodel import load_mesh
-        key = (str(g.mesh), tuple(np.round(g.scale, 12)))
+        key = (str(g.mesh), tuple(np.round(g.scale, 12)), role)
         if key in self.names:
-            return self.names[key] if self.solid[key] else None
+            return self.names[key]
         mesh = load_mesh(g.mesh, g.scale)
-        self.solid[key] = _mesh_ok(mesh)
+        if not _mesh_ok(mesh, role):
+            self.names[key] = None
+            return None
         stem = "".join(c if c.isalnum() or c in "_-" else "_" for c in g.mesh.stem) or "mesh"
         name, n = stem, 1
         while name in self.used:
@@ -129,8 +143,6 @@ class _Assets:
             name = f"{stem}_{n}"
         self.used.add(name)
         self.names[key] = name
-        if not self.solid[key]:
-            return None
         ext = g.mesh.suffix.lower()
         if ext in MESH_EXTS:
             fname = f"{name}{ext}"
@@ -143,7 +155,7 @@ class _Assets:
                                                         include_color=False,
                                                         include_texture=False, header=None))
             scale = np.ones(3)              # already applied by load_mesh
-        self.entries.append((name, fname, scale))
+        self.entries.append((name, fname, scale, role))
         return name
 
 
@@ -181,7 +193,7 @@ def _geom_el(parent, g: Geom, cls: str, assets: _Assets, materials: dict, name: 
     from lxml import etree
     attrs = {"class": cls, "name": name}
     if g.kind == "mesh":
-        mesh = assets.add(g)
+        mesh = assets.add(g, "visual" if cls == "visual" else "collision")
         if mesh is None:
             return None
         attrs.update(type="mesh", mesh=mesh)
@@ -269,8 +281,7 @@ def _build(model: URDFModel, assets: _Assets, *, floating: bool, on_floor: bool)
         for k, g in enumerate(link.collisions):
             if _geom_el(body, g, "collision", assets, materials,
                         g.name or f"{link_name}_collision_{k}") is None:
-                log.warning("collision mesh %s of link %s cannot be compiled by MuJoCo; left out",
-                            g.mesh, link_name)
+                dropped.append(f"{link_name}: {g.mesh.name}")
         for j in model.child_joints(link_name):
             if j.child in screws:           # slide into a helper: merge helper + hinge child
                 slide, hinge = screws[j.child]
@@ -297,10 +308,12 @@ def _build(model: URDFModel, assets: _Assets, *, floating: bool, on_floor: bool)
 
     for key, mname in materials.items():
         etree.SubElement(asset, "material", name=mname, rgba=_fmt(key))
-    for aname, fname, scale in assets.entries:
+    for aname, fname, scale, role in assets.entries:
         attrs = {"name": aname, "file": fname}
         if not np.allclose(scale, 1.0):
             attrs["scale"] = _fmt(scale)
+        if role == "visual":
+            attrs["inertia"] = "shell"
         etree.SubElement(asset, "mesh", attrib=attrs)
     if equality:
         eq = etree.SubElement(root, "equality")
@@ -318,6 +331,31 @@ def _build(model: URDFModel, assets: _Assets, *, floating: bool, on_floor: bool)
             attrs["forcerange"] = _fmt([-j.effort, j.effort])
         etree.SubElement(act, "position", attrib=attrs)
     return root, joints_out, [j.name for j in actuated], couplings, dropped
+
+
+def _drop_uncompilable(root, xml_path: Path, write, max_tries: int = 50) -> list[str]:
+    """Compile; while MuJoCo rejects a mesh asset (a degenerate hull our checks let through),
+    remove the asset and its geoms and try again. Returns "body: file" of what was removed."""
+    import mujoco
+    removed = []
+    for _ in range(max_tries):
+        try:
+            mujoco.MjModel.from_xml_path(str(xml_path))
+            return removed
+        except ValueError as e:
+            hit = re.search(r"Element name '([^']+)'", str(e))
+            asset = root.find("asset")
+            mesh = asset.find(f"mesh[@name='{hit.group(1)}']") if hit else None
+            if mesh is None:
+                raise ConvertError(f"MuJoCo cannot compile the converted model {xml_path}: {e}") from None
+            for geom in list(root.iter("geom")):
+                if geom.get("mesh") == mesh.get("name"):
+                    removed.append(f"{geom.getparent().get('name')}: {mesh.get('file')}")
+                    geom.getparent().remove(geom)
+            asset.remove(mesh)
+            (xml_path.parent / "assets" / mesh.get("file")).unlink(missing_ok=True)
+            write()
+    raise ConvertError(f"MuJoCo still rejects meshes of {xml_path} after {max_tries} removals")
 
 
 def _compile(xml_path: Path):
@@ -431,9 +469,6 @@ def export_mjcf(folder: os.PathLike, out_dir: Optional[os.PathLike] = None, *,
         assets = _Assets(tmp / "assets")
         root, joints, actuators, couplings, dropped = _build(model, assets, floating=floating,
                                                              on_floor=on_floor)
-        if dropped:
-            log.warning("%s: visual meshes MuJoCo cannot compile (flat) left out: %s",
-                        model.path.name, dropped)
         model_file = f"{name}.xml"
         xml_path = tmp / model_file
 
@@ -442,6 +477,11 @@ def export_mjcf(folder: os.PathLike, out_dir: Optional[os.PathLike] = None, *,
             xml_path.write_text(etree.tostring(root, encoding="unicode") + "\n")
 
         write()
+        dropped += _drop_uncompilable(root, xml_path, write)
+        if dropped:
+            log.warning("%s: %d mesh(es) MuJoCo cannot compile (flat or degenerate) left out: %s",
+                        model.path.name, len(dropped), ", ".join(dropped[:8])
+                        + (" ..." if len(dropped) > 8 else ""))
         pairs = _tune(root, xml_path, kp_hz=kp_hz, exclude_depth=exclude_depth)
         write()
         bounds = _rest_bounds(model)
