@@ -111,7 +111,7 @@ def test_cli_interrupted_with_two_workers_then_resumed(tiny, tmp_path):
     t0 = time.time()
     while time.time() - t0 < 240 and not (manifest.exists() and len(_lines(manifest)) >= 2):
         time.sleep(0.2)
-    proc.send_signal(signal.SIGINT)
+    proc.send_signal(signal.SIGTERM)          # a kill: the batch stops its workers too
     _, err = proc.communicate(timeout=60)
     first = len(_lines(manifest))
     assert proc.returncode == 130 and "resume" in err and 2 <= first < 9

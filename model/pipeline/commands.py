@@ -134,6 +134,11 @@ def _batch(a) -> int:
         secs = f"{entry['seconds']:.1f} s" if entry.get("seconds") is not None else ""
         print(f"[{n}/{summary.total}] {what}  {secs}", flush=True)
 
+    import signal
+
+    def _stop(signum, frame):   # SIGTERM (kill, a scheduler) stops the workers like Ctrl-C
+        raise KeyboardInterrupt
+    previous = signal.signal(signal.SIGTERM, _stop)
     try:
         prompts = read_prompts(a.prompts)
         summary = run_batch(prompts, a.out, samples=a.samples, workers=a.workers, seed=a.seed,
@@ -147,6 +152,8 @@ def _batch(a) -> int:
         print("artformer generate: interrupted; run the same command again to resume",
               file=sys.stderr)
         return 130
+    finally:
+        signal.signal(signal.SIGTERM, previous)
     ran = summary.done + summary.failed
     print(f"manifest: {summary.manifest}")
     print(f"{summary.total} jobs: {summary.skipped} already done, {summary.done} generated, "
