@@ -1,29 +1,47 @@
 """Decode each prompt of a file (one per line, '#' comments) with 8 seeds at the product's
-structure decoding and count the aligned trees (model.metrics alignment), with the structures
-made. Usage: python scripts/text_prompt_seeds.py PROMPTS [TEMPERATURE [CKPT]]"""
-import sys, torch
+structure decoding (END held to the plan head) and count the aligned trees (model.metrics
+alignment), with the structures made.
+
+    python scripts/text_prompt_seeds.py model/metrics/prompts_freeform.txt 0.3 model/weights/transformer_small.pt
+"""
+import argparse
+
+import torch
+
 from model.articulation.decode import ArticulationModel
-from model.articulation.evaluate import _prompt_checker
+from model.metrics.alignment import GeneratedStructure, check_alignment
 from model.metrics.prompt_parse import parse_prompt
-torch.set_num_threads(2)
-check = _prompt_checker()
-prompts = [l.strip() for l in open(sys.argv[1]) if l.strip() and not l.startswith("#")]
-ck = sys.argv[3] if len(sys.argv) > 3 else "model/weights/transformer_small.pt"
-am = ArticulationModel.load(ck)
-T = float(sys.argv[2]) if len(sys.argv) > 2 else 0.3
-n = 8
-tot = 0
-for p in prompts:
-    tok, mask = am.encode_text([p])
-    ok = []
-    seen = {}
-    for s in range(n):
-        tr = am.decode(tok, mask, seed=s, temperature=T, follow_plan=True)[0]
-        r = check(p, tr)
-        ok.append(r.aligned)
-        c = tr.summary()["counts"]
-        key = ",".join(f"{k}{v}" for k, v in sorted(c.items()))
-        seen[key] = seen.get(key, 0) + 1
-    tot += sum(ok)
-    print(f"{sum(ok)}/{n}  {p!r}  parsed={parse_prompt(p)}\n      {seen}")
-print("total", tot, "/", n * len(prompts))
+
+SHIPPED = "model/weights/transformer_small.pt"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("prompts", help="text file, one prompt per line")
+    ap.add_argument("temperature", nargs="?", type=float, default=0.3)
+    ap.add_argument("checkpoint", nargs="?", default=SHIPPED)
+    ap.add_argument("--seeds", type=int, default=8)
+    ap.add_argument("--threads", type=int, default=2)
+    args = ap.parse_args()
+    torch.set_num_threads(args.threads)
+    with open(args.prompts, encoding="utf-8") as f:
+        prompts = [line.strip() for line in f if line.strip() and not line.startswith("#")]
+    am = ArticulationModel.load(args.checkpoint)
+    total = 0
+    for prompt in prompts:
+        expected = parse_prompt(prompt)
+        tok, mask = am.encode_text([prompt])
+        aligned, seen = 0, {}
+        for seed in range(args.seeds):
+            tree = am.decode(tok, mask, seed=seed, temperature=args.temperature, follow_plan=True)[0]
+            got = GeneratedStructure.from_labels(tree.category or None, tree.labels, tree.joint_types)
+            aligned += check_alignment(expected, got).aligned
+            key = ",".join(f"{k}{v}" for k, v in sorted(tree.summary()["counts"].items()))
+            seen[key] = seen.get(key, 0) + 1
+        total += aligned
+        print(f"{aligned}/{args.seeds}  {prompt!r}  parsed={expected}\n      {seen}")
+    print("total", total, "/", args.seeds * len(prompts))
+
+
+if __name__ == "__main__":
+    main()
