@@ -9,6 +9,8 @@ import sys
 ROUTES: dict[tuple[str, ...], tuple[str, str]] = {
     ("export",): ("model.export.commands", "export the built-in example object(s) to URDF folders"),
     ("convert",): ("model.export.convert", "convert an object folder to MJCF / USD / a ROS package"),
+    ("view",): ("model.export.viewer", "show an object folder in the browser (viser)"),
+    ("studio",): ("model.export.viewer", "generate objects from a prompt or image in the browser"),
     ("data", "render"): ("model.imaging.commands", "render dataset objects for image conditioning"),
     ("data", "partmaps"): ("model.imaging.commands", "part-centre maps of the rendered views"),
     ("data", "features"): ("model.imaging.commands", "cache encoder features of the rendered views"),
@@ -21,6 +23,7 @@ ROUTES: dict[tuple[str, ...], tuple[str, str]] = {
     ("train", "image-trunk"): ("model.imaging.commands", "fine-tune the image encoder trunk to count parts"),
     ("generate",): ("model.pipeline.commands", "text or image -> URDF + meshes"),
     ("edit",): ("model.pipeline.commands", "remove parts of a URDF and regenerate them from text"),
+    ("eval", "audit"): ("model.metrics.audit_eval", "sim-ready audit of generated objects, raw and refined"),
     ("eval", "geometry"): ("model.geometry.commands", "shape-prior reconstruction / sample quality"),
     ("bench", "geometry"): ("model.geometry.commands", "shape-prior meshing and DDIM speed"),
     ("eval",): ("model.metrics.commands", "evaluate a checkpoint (POR, MMD/COV/1-NNA, alignment...)"),

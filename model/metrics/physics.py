@@ -2,7 +2,7 @@
 are driven?
 
 The URDF is compiled with MjSpec (visual meshes left out: only collision geometry takes
-part), a ground plane is added at z = 0 and every hinge / slide joint gets a position
+part), a ground plane is added under its lowest collision point at rest and every hinge / slide joint gets a position
 actuator, critically damped, at least as stiff as 4 Hz on the joint's effective inertia and
 as the URDF's effort limit at a tenth of the range off target (a motor-like armature keeps
 such a servo stable on a 5 g cap), and whose controller cancels gravity on the
@@ -100,7 +100,8 @@ def _spec(urdf: Path, tmpdir: str, free: bool, cfg: PhysicsConfig):
             # MuJoCo filters parent/child contacts except against bodies welded to the world,
             # which the fixed-base root is; exclude them explicitly so both runs agree
             spec.add_exclude(bodyname1=b.parent.name, bodyname2=b.name)
-    spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 1], name="audit_floor")
+    spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 1], name="audit_floor",
+                            pos=[0, 0, _lowest_point(spec)])
     joints = [j for j in spec.joints if j.type in (mujoco.mjtJoint.mjJNT_HINGE,
                                                    mujoco.mjtJoint.mjJNT_SLIDE)]
     for j in joints:
@@ -112,6 +113,23 @@ def _spec(urdf: Path, tmpdir: str, free: bool, cfg: PhysicsConfig):
         a.target = j.name
         a.set_to_position(kp=1.0, kv=0.0)       # gains set per joint once inertia is known
     return spec, [j.name for j in joints]
+
+
+def _lowest_point(spec) -> float:
+    """Height of the lowest point of the collision geometry at rest (where the floor goes:
+    the object stands on it, whatever its own z = 0)."""
+    import mujoco
+    m = spec.compile()
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    low = np.inf
+    for g in range(m.ngeom):
+        if m.geom_contype[g] == 0 and m.geom_conaffinity[g] == 0:
+            continue
+        R = d.geom_xmat[g].reshape(3, 3)
+        c, half = m.geom_aabb[g, :3], m.geom_aabb[g, 3:]
+        low = min(low, float(d.geom_xpos[g, 2] + R[2] @ c - np.abs(R[2]) @ half))
+    return 0.0 if not np.isfinite(low) else low
 
 
 def _ranges(m, names: list[str]) -> list[tuple[float, float, int, int]]:

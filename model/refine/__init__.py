@@ -23,6 +23,7 @@ class RefineConfig:
     layout: LayoutConfig = field(default_factory=LayoutConfig)
     floaters: bool = True          # drop specks and enclosed voids of every part
     carve: bool = True             # parents give way where a moving child passes
+    runners: bool = True           # a detached drawer gets a slab of its parent to slide on
     limits: bool = True            # a range ends where its sweep still collides
     face_budget: int = 30000       # visual faces per object (0: keep every face)
     max_overlap: float = 0.01      # what the limit shrink tolerates (the audit's threshold)
@@ -42,8 +43,8 @@ def refine_meshes(obj: ArticulatedObject, config: Optional[RefineConfig] = None,
         before = sum(len(m.decompose()) for m in mans.values())
         mans = {k: M.drop_floaters(m) for k, m in mans.items()}
         report["shells_dropped"] = before - sum(len(m.decompose()) for m in mans.values())
-    # 10 % headroom: carving adds faces after simplifying
-    mans, report["simplify_tolerance"] = M.simplify_to_budget(mans, int(0.9 * cfg.face_budget))
+    # 15 % headroom: carving adds faces after simplifying
+    mans, report["simplify_tolerance"] = M.simplify_to_budget(mans, int(0.85 * cfg.face_budget))
     if cfg.floaters and report["simplify_tolerance"]:
         mans = {k: M.drop_floaters(m) for k, m in mans.items()}   # simplifying can split
     if cfg.carve:
@@ -52,7 +53,10 @@ def refine_meshes(obj: ArticulatedObject, config: Optional[RefineConfig] = None,
             if obj.parts[i].collision:
                 obj.parts[i].collision = M.carve_collision(obj.parts[i].collision, sweep)
         report["carved"] = sorted(obj.parts[i].name for i in carved)
+    if cfg.runners:
+        report["runners"] = M.add_runners(obj, mans)
     M.store(obj, mans)
+    report["hull_collision"] = M.round_collision(obj, mans)
     for i in mans:               # the boxes describe the meshes that get exported
         obj.parts[i].fit_bbox_to_mesh()
     if cfg.limits and not frozen:

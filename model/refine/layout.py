@@ -81,10 +81,9 @@ def face_of(obj: ArticulatedObject, i: int) -> Optional[tuple[int, float]]:
     if p.label in SLIDERS and j.type.translates:
         k, s = _principal(j.axis)
         return k, s * (1.0 if abs(j.t_range[1]) >= abs(j.t_range[0]) else -1.0)
-    if p.label == "button" and j.type.translates:
-        k, s = _principal(j.axis)
-        return k, -s * (1.0 if abs(j.t_range[1]) >= abs(j.t_range[0]) else -1.0)
-    if p.label in ("knob", "dial") and j.type.rotates:
+    if (p.label in ("knob", "dial") and j.type.rotates) or (p.label == "button"
+                                                            and j.type.translates):
+        # the axis names the face's normal; which of its two faces is where the part sits
         k = _principal(j.axis)[0]
         return k, float(np.sign(p.bbox_center[k] - pc[k]) or 1.0)
     if p.label in PANELS:

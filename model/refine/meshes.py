@@ -57,26 +57,30 @@ def _subtree(obj: ArticulatedObject, k: int) -> list[int]:
     return out
 
 
-HULL_SWEEP = ("drawer", "tray", "door", "lid")
+HULL_SWEEP = ("drawer", "tray", "door", "lid", "button", "knob", "dial")
 
 
 def swept_hull(obj: ArticulatedObject, mans: dict, k: int, states: int = 8):
     """Union over ``states`` openness ratios of joint ``k`` of its moving subtree. Drawers,
-    trays, doors and lids sweep as convex hulls (their inside is theirs: a drawer's cavity,
-    exact for a box that slides); other parts (a cap around its neck, a knob) as their own
-    meshes, so what they enclose stays."""
+    trays, doors, lids, buttons, knobs and dials sweep as convex hulls (their inside is
+    theirs: a drawer's cavity, a button's pocket; exact for a box that slides); other parts
+    (a cap around its neck) as their own meshes, so what they enclose stays."""
     mf = meshops._mf()
     sub = [i for i in _subtree(obj, k) if i in mans]
     if not sub:
         return None
     hull = obj.parts[k].label in HULL_SWEEP
-    ratios = [0.0, 1.0] if obj.parts[k].joint.type == JointType.PRISMATIC and hull \
-        else np.linspace(0, 1, states if hull else 2 * states)
+    jt = obj.parts[k].joint.type
+    if jt == JointType.PRISMATIC and hull:
+        ratios = [0.0, 1.0]
+    else:       # a turning part that is not a panel: fine steps, as it is not a hull
+        ratios = np.linspace(0, 1, states if hull else (48 if jt.rotates else 2 * states))
+    src = mans
     pieces = []
     for r in ratios:
         T = obj.link_transforms(ratio={obj.parts[k].name: float(r)})
         for i in sub:
-            m = mans[i].transform(_T34(T[obj.parts[i].name]))
+            m = src[i].transform(_T34(T[obj.parts[i].name]))
             pieces.append(m.hull() if hull else m)
     return mf.Manifold.batch_boolean(pieces, mf.OpType.Add)
 
@@ -94,6 +98,9 @@ def carve_parents(obj: ArticulatedObject, mans: dict) -> dict[int, object]:
         if sweep is None or sweep.is_empty():
             continue
         before = float(mans[par].volume())
+        child = max(sum(float(mans[i].volume()) for i in _subtree(obj, k) if i in mans), 1e-12)
+        if float((mans[par] ^ sweep).volume()) < 1e-3 * child:
+            continue                       # nothing in the way: no cut, no extra faces
         cut = mf.Manifold.batch_boolean([mans[par], sweep], mf.OpType.Subtract)
         if cut.is_empty():
             log.debug("carving %s would empty it; left alone", obj.parts[par].name)
@@ -203,6 +210,52 @@ def _collides(obj, mans, vol, pairs, T, max_overlap) -> bool:
     return False
 
 
+def add_runners(obj: ArticulatedObject, mans: dict, max_gap: float = 0.005,
+                thickness: float = 0.005) -> list[str]:
+    """A drawer or tray that does not touch its parent gets a runner: a thin slab of the
+    parent under its footprint, from its back to the parent's face, so it slides on
+    something. Returns the parts given one."""
+    from .layout import SLIDERS
+    mf = meshops._mf()
+    added = []
+    for k in obj.movable_parts():
+        p = obj.parts[k]
+        par = p.parent
+        if p.label not in SLIDERS or par < 0 or k not in mans or par not in mans:
+            continue
+        if float(mans[k].min_gap(mans[par], 2 * max_gap)) <= max_gap:
+            continue
+        lo, hi = np.asarray(mans[k].bounding_box()).reshape(2, 3)
+        plo, phi = np.asarray(mans[par].bounding_box()).reshape(2, 3)
+        slab_lo, slab_hi = lo.copy(), hi.copy()
+        slab_hi[2], slab_lo[2] = lo[2], max(lo[2] - thickness, plo[2])
+        d = int(np.argmax(np.abs(p.joint.axis)))
+        if d != 2:          # reach back into the parent along the travel axis
+            slab_lo[d], slab_hi[d] = max(min(lo[d], hi[d]), plo[d]), min(max(lo[d], hi[d]), phi[d])
+        if np.any(slab_hi - slab_lo <= 1e-4):
+            continue
+        runner = meshops.box(slab_hi - slab_lo, (slab_lo + slab_hi) / 2)
+        mans[par] = mf.Manifold.batch_boolean([mans[par], runner], mf.OpType.Add)
+        added.append(p.name)
+    return added
+
+
+def round_collision(obj: ArticulatedObject, mans: dict, solid: float = 0.7) -> list[str]:
+    """Turning parts other than doors and lids (knobs, dials, caps) collide as the convex
+    hull of their mesh when it is nearly convex: box pieces fitted to a round part sweep
+    their corners beyond the part when it turns. Returns the parts changed."""
+    changed = []
+    for k in obj.movable_parts():
+        p = obj.parts[k]
+        if k not in mans or p.label in ("door", "lid") or not p.joint.type.rotates:
+            continue
+        hull = mans[k].hull()
+        if float(mans[k].volume()) >= solid * float(hull.volume()):
+            p.collision = [meshops.to_trimesh(hull)]
+            changed.append(p.name)
+    return changed
+
+
 def manifolds_of(obj: ArticulatedObject) -> dict:
     out = {}
     for i, p in enumerate(obj.parts):
@@ -216,5 +269,5 @@ def store(obj: ArticulatedObject, mans: dict) -> None:
         obj.parts[i].mesh = meshops.to_trimesh(m)
 
 
-__all__ = ["drop_floaters", "simplify_to_budget", "carve_parents", "carve_collision", "shrink_limits",
+__all__ = ["add_runners", "round_collision", "drop_floaters", "simplify_to_budget", "carve_parents", "carve_collision", "shrink_limits",
            "swept_hull", "manifolds_of", "store"]
