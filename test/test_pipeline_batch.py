@@ -98,6 +98,17 @@ def test_batch_records_failures_and_resumes(tiny, tmp_path):
         run_batch(["a lamp", LONG, "a bottle"], out, config=_config(tiny))
 
 
+def test_audit_verdict_in_the_manifest(tiny, tmp_path):
+    pytest.importorskip("model.metrics.audit")
+    s = run_batch(["a cabinet with one door"], tmp_path / "a", config=_config(tiny), preview=False,
+                  audit=True)
+    [e] = _lines(tmp_path / "a" / "manifest.jsonl")
+    assert s.done == 1 and e["status"] == "ok"
+    assert isinstance(e["audit"]["sim_ready"], bool) and isinstance(e["audit"]["failures"], list)
+    assert e["audit"]["sim_ready"] == (not e["audit"]["failures"] and "error" not in e["audit"])
+    assert e["timings_s"]["audit"] > 0
+
+
 @pytest.mark.slow
 def test_cli_interrupted_with_two_workers_then_resumed(tiny, tmp_path):
     prompts = tmp_path / "p.txt"

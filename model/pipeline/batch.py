@@ -168,7 +168,10 @@ def _audit(obj, urdf: str):
         return {"error": f"audit not available: {e}"}
     try:
         rep = audit_object(obj, urdf=urdf)
-        return {"sim_ready": bool(rep.sim_ready), "failures": list(rep.failures)}
+        out = {"sim_ready": bool(rep.sim_ready), "failures": [str(f) for f in rep.failures]}
+        if rep.error:
+            out["error"] = rep.error
+        return out
     except Exception as e:  # an audit crash is recorded, not a failed object
         return {"error": f"{type(e).__name__}: {e}"}
 
