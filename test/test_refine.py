@@ -100,6 +100,6 @@ def test_floaters_dropped_and_face_budget_kept():
     n0 = sum(len(p.mesh.faces) for p in obj.parts)
     rep = refine_meshes(obj, RefineConfig(face_budget=2000, carve=False, limits=False))
     faces = sum(len(p.mesh.faces) for p in obj.parts)
-    assert n0 > 10000 and faces <= 2000 and rep["shells_dropped"] >= 1
+    assert n0 > 10000 and faces <= 2000 and rep["simplify_tolerance"] > 0
     assert len(obj.parts[0].mesh.split(only_watertight=False)) == 1
     assert obj.parts[0].mesh.is_watertight

@@ -17,6 +17,7 @@ import os
 from pathlib import Path
 from typing import Optional, Sequence
 
+import numpy as np
 import torch
 
 from .checkpoint import CheckpointError, load_checkpoint
@@ -143,21 +144,26 @@ class ShapeModel:
 
     # -- meshing --------------------------------------------------------------------------
     @torch.inference_mode()
-    def decode(self, z: torch.Tensor, resolution: int = 64, part_batch: int = 1,
+    def decode(self, z: torch.Tensor, resolution=64, part_batch: int = 1,
                **kw) -> list[MeshResult]:
         """z (B, Z) -> one MeshResult per part (mesh in the unit cube, status, evaluations).
 
-        The planes of all parts are decoded in one call; the SDF grids are evaluated
-        ``part_batch`` parts per network call (parts need very different numbers of
-        evaluations, and padding them to one batch measured 2x slower per part than one
-        part at a time).
+        ``resolution``: cells per side for every part, or a sequence of one per part (then
+        parts are meshed one at a time). The planes of all parts are decoded in one call;
+        the SDF grids are evaluated ``part_batch`` parts per network call (parts need very
+        different numbers of evaluations, and padding them to one batch measured 2x slower
+        per part than one part at a time).
         """
         planes = self.ae.decode_planes(z.float())                        # (B, 3, C, R, R)
+        per_part = np.ndim(resolution) > 0
+        if per_part:
+            part_batch = 1
         out: list[MeshResult] = []
         for i in range(0, z.shape[0], part_batch):
             pl = planes[i:i + part_batch]
+            res = int(resolution[i]) if per_part else int(resolution)
             out += mesh_sdf_batch(lambda xyz, pl=pl: self.ae.query(pl, xyz), pl.shape[0],
-                                  resolution, **kw)
+                                  res, **kw)
         return out
 
     def decode_meshes(self, z: torch.Tensor, resolution: int = 64) -> list:

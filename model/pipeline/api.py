@@ -19,7 +19,9 @@ class GenerationError(RuntimeError):
 @dataclass
 class GenerationConfig:
     checkpoint: Optional[str] = None   # folder of the three stage checkpoints; None = shipped
-    resolution: int = 64               # effective marching-cubes resolution per part
+    resolution: int = 64               # marching-cubes cells per side of the largest parts
+    mesh_cell: float = 0.008           # m: smaller parts get 16 or 32 cells when that
+                                       # keeps their cells under this (0: all at resolution)
     steps: int = 50                    # DDIM steps of the shape prior
     guidance: float = 1.0              # classifier-free guidance scale (1 = off)
     temperature: float = 0.5           # Gumbel-softmax temperature at generation

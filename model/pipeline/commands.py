@@ -14,7 +14,11 @@ def _model_args(p: argparse.ArgumentParser) -> None:
                         "(default: the shipped model in model/weights)")
     p.add_argument("--seed", type=int, default=0, help="sample i uses seed+i (default 0)")
     p.add_argument("--samples", type=int, default=1, help="objects to generate (default 1)")
-    p.add_argument("--resolution", type=int, default=64, help="marching-cubes grid per part (64)")
+    p.add_argument("--resolution", type=int, default=64,
+                   help="marching-cubes cells per side of the largest parts (64)")
+    p.add_argument("--mesh-cell", type=float, default=0.008,
+                   help="m: small parts mesh at 16 or 32 cells when their cells stay under "
+                        "this (default 0.008; 0 = every part at --resolution)")
     p.add_argument("--steps", type=int, default=50, help="DDIM steps of the shape prior (50)")
     p.add_argument("--guidance", type=float, default=1.0, help="classifier-free guidance (1 = off)")
     p.add_argument("--structure-temperature", type=float, default=0.3,
@@ -46,7 +50,8 @@ def _model_args(p: argparse.ArgumentParser) -> None:
 
 def _config(a):
     from model.pipeline.api import GenerationConfig
-    return GenerationConfig(checkpoint=a.checkpoint, resolution=a.resolution, steps=a.steps,
+    return GenerationConfig(checkpoint=a.checkpoint, resolution=a.resolution,
+                            mesh_cell=a.mesh_cell, steps=a.steps,
                             guidance=a.guidance, geometry=a.geometry, mesh_format=a.mesh_format,
                             collision=a.collision, threads=a.threads,
                             structure_temperature=a.structure_temperature,

@@ -255,7 +255,8 @@ class Generator:
 
         t = time.perf_counter()
         with torch_threads(cfg.threads):
-            decoded = self.shape.decode(z, resolution=cfg.resolution) if new else []
+            res = [part_resolution(obj.parts[k].bbox_size, cfg) for k in new]
+            decoded = self.shape.decode(z, resolution=res) if new else []
         fallbacks = []
         for k, r in zip(new, decoded):
             part = obj.parts[k]
@@ -358,6 +359,19 @@ def _collision_boxes(r, fitted, max_boxes: int = 32, min_coverage: float = 0.0,
     return boxes if boxes and covered >= min_coverage else None
 
 
+def part_resolution(size, cfg: GenerationConfig) -> int:
+    """Marching-cubes cells per side for a part of box ``size`` (m): enough for cells of
+    ``cfg.mesh_cell`` along its longest side, from 16 up to ``cfg.resolution`` in powers of
+    two (the coarse-to-fine ladder); ``mesh_cell`` 0 meshes every part at ``resolution``."""
+    if cfg.mesh_cell <= 0:
+        return int(cfg.resolution)
+    need = float(np.max(size)) / cfg.mesh_cell
+    res = 16
+    while res < need and res * 2 <= cfg.resolution:
+        res *= 2
+    return min(res, int(cfg.resolution))
+
+
 def validate_config(cfg: GenerationConfig) -> None:
     """Raise GenerationError naming the first bad field of a GenerationConfig."""
     checks = [
@@ -378,6 +392,7 @@ def validate_config(cfg: GenerationConfig) -> None:
         (1 <= cfg.token_threads <= 64, f"token_threads must be in [1, 64], got {cfg.token_threads}"),
         (1 <= cfg.max_nodes <= 64, f"max_nodes must be in [1, 64], got {cfg.max_nodes}"),
         (cfg.face_budget >= 0, f"face_budget must be >= 0, got {cfg.face_budget}"),
+        (cfg.mesh_cell >= 0, f"mesh_cell must be >= 0, got {cfg.mesh_cell}"),
         (0 <= cfg.max_depth <= 16, f"max_depth must be in [0, 16], got {cfg.max_depth}"),
         (0 <= cfg.max_children <= 64, f"max_children must be in [0, 64], got {cfg.max_children}"),
     ]

@@ -40,9 +40,7 @@ def refine_meshes(obj: ArticulatedObject, config: Optional[RefineConfig] = None,
     mans = {k: m for k, m in M.manifolds_of(obj).items() if k not in frozen}
     report: dict = {}
     if cfg.floaters:
-        before = sum(len(m.decompose()) for m in mans.values())
         mans = {k: M.drop_floaters(m) for k, m in mans.items()}
-        report["shells_dropped"] = before - sum(len(m.decompose()) for m in mans.values())
     # 15 % headroom: carving adds faces after simplifying
     mans, report["simplify_tolerance"] = M.simplify_to_budget(mans, int(0.85 * cfg.face_budget))
     if cfg.floaters and report["simplify_tolerance"]:

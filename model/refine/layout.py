@@ -13,8 +13,8 @@ Steps, in order (each can be switched off for ablation through :class:`LayoutCon
 4. ``separate`` — siblings on one face whose boxes still overlap are cut apart in the face
    plane at the middle of their overlap (a door as wide as the cabinet gives way to the
    drawers beside it).
-5. ``joints`` — door and lid hinges go onto the box edge on the side the model chose,
-   turning outwards; drawers and trays slide along their face's normal, buttons into it,
+5. ``joints`` — door and lid hinges go onto the box edge on the side the model chose
+   (the long edge of a clearly oblong panel), turning outwards; drawers and trays slide along their face's normal, buttons into it,
    knobs and dials turn about their own centre; travel stays within the part's depth.
 
 Boxes are axis-aligned in the object frame at rest (DESIGN §2), as the tokens are.
@@ -37,6 +37,7 @@ ON_FACE = ("handle", "knob", "dial", "button")
 SMALL = ("knob", "dial", "button", "handle")
 GAP = 0.002            # m between separated siblings
 MIN_KEEP = 0.3         # a box keeps at least this share of its size when cut
+ASPECT = 1.3           # a panel this much longer than wide hinges on its long edge
 FRAME = 0.015          # m of the parent left around an opening (at least 4 % of its side)
 
 
@@ -252,9 +253,12 @@ def _hinge(obj: ArticulatedObject, i: int, face: tuple[int, float]) -> None:
     k, s = face
     lo, hi = _lohi(p)
     a = _principal(j.axis)[0]
-    if a == k:           # an axis along the face normal cannot hinge a panel: keep the
-        ins = [d for d in range(3) if d != k]        # longer in-face edge instead
-        a = max(ins, key=lambda d: p.bbox_size[d])
+    ins = [d for d in range(3) if d != k]
+    longer, shorter = sorted(ins, key=lambda d: -p.bbox_size[d])
+    # an axis along the face normal cannot hinge a panel; a clearly oblong panel hinges on
+    # its long edge (a tall wardrobe door on a side, a wide oven door at the bottom)
+    if a == k or p.bbox_size[longer] >= ASPECT * p.bbox_size[shorter]:
+        a = longer
     u = [d for d in range(3) if d not in (a, k)][0]
     side = lo[u] if abs(j.origin[u] - lo[u]) <= abs(j.origin[u] - hi[u]) else hi[u]
     origin = p.bbox_center.copy()
