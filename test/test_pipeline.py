@@ -167,3 +167,24 @@ def test_generated_parts_get_collision_boxes_inside_their_box_and_load(gen, tmp_
     assert {"export", "preview"} <= set(res.timings)     # the picture is timed on its own
     # (simulator loading of generated objects: test_shipped_pipeline.py; the tiny model's
     # parts all overlap, which no collision geometry makes simulable)
+
+
+@pytest.mark.slow
+def test_refine_switch_and_eval_audit_rows(tiny, tmp_path, capsys):
+    """--no-refine exports the raw output (no refine timing); `artformer eval audit` writes
+    a raw and a refined row for the same prompts."""
+    from model.metrics import audit_eval
+    from model.pipeline.generator import Generator
+    raw = Generator.load(GenerationConfig(checkpoint=str(tiny), resolution=24, steps=4,
+                                          threads=1, refine=False))
+    [res] = raw.generate("a cabinet with two drawers", seed=0)
+    assert "refine" not in res.timings and "refine" not in res.obj.metadata
+    prompts = tmp_path / "p.txt"
+    prompts.write_text("a cabinet with two drawers\n")
+    assert audit_eval.main(["eval", "audit", "--checkpoint", str(tiny), "--seeds", "1",
+                            "--freeform-file", str(prompts), "--no-everyday",
+                            "--out", str(tmp_path / "ea")]) == 0
+    data = json.loads((tmp_path / "ea" / "audit.json").read_text())
+    assert set(data) == {"raw model", "refined"}
+    assert all(len(v["objects"]) == 1 for v in data.values())
+    assert "sim-ready:" in capsys.readouterr().out

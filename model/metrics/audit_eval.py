@@ -30,7 +30,7 @@ EVERYDAY = (
 def _rows(gen, prompts, seeds: int, out: Path, refine: bool, progress: bool):
     from model.metrics.audit import audit_object
     gen.config.refine = refine
-    reps, objs = [], {}
+    reps = []
     jobs = [(p, s) for p in prompts for s in range(seeds)]
     if progress:
         from tqdm import tqdm
@@ -47,8 +47,7 @@ def _rows(gen, prompts, seeds: int, out: Path, refine: bool, progress: bool):
         rep.name = f"{n:03d}_{res.obj.name}"
         rep.seconds = res.timings.get("refine", 0.0)
         reps.append(rep)
-        objs[rep.name] = res.obj
-    return reps, objs
+    return reps
 
 
 def main(argv: list[str]) -> int:
@@ -70,9 +69,9 @@ def main(argv: list[str]) -> int:
     results = {}
     for refine in (False, True):
         name = "refined" if refine else "raw model"
-        reps, objs = _rows(gen, prompts, args.seeds, out, refine, sys.stderr.isatty())
+        reps = _rows(gen, prompts, args.seeds, out, refine, sys.stderr.isatty())
         results[name] = {"summary": summarise(reps), "objects": [r.to_dict() for r in reps]}
-        write_contact_sheet(reps, out / f"worst_{'refined' if refine else 'raw'}.png", objects=objs)
+        write_contact_sheet(reps, out / f"worst_{'refined' if refine else 'raw'}.png")
         print(f"## {name}\n{audit_table(reps).splitlines()[-1]}")
     (out / "audit.json").write_text(json.dumps(results, indent=1))
     print(f"wrote {out}/audit.json, worst_raw.png, worst_refined.png in {time.time() - t0:.0f} s")
