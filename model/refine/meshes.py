@@ -39,12 +39,20 @@ def simplify_to_budget(mans: dict, budget: int, tolerances=(0.001, 0.002, 0.004,
     """Simplify every Manifold, step by step through ``tolerances`` (m), until the total
     face count is within ``budget``; returns the meshes and the last tolerance used (0:
     untouched). Each step starts from the previous one's meshes (fast: the first step
-    removes most faces), so the deviation stays under the sum of the steps used."""
+    removes most faces), so the deviation stays under the sum of the steps used. A part's
+    tolerance is capped at 3 % of its longest side, and a step that would empty a part or
+    cost it a fifth of its volume is not taken for that part: small parts keep their shape."""
     out, used = mans, 0.0
     for tol in tolerances:
         if budget <= 0 or sum(m.num_tri() for m in out.values()) <= budget:
             break
-        out, used = {k: m.simplify(tol) for k, m in out.items()}, tol
+        nxt = {}
+        for k, m in out.items():
+            side = float(np.ptp(np.asarray(m.bounding_box()).reshape(2, 3), axis=0).max())
+            s = m.simplify(min(tol, 0.03 * side))
+            ok = not s.is_empty() and float(s.volume()) >= 0.8 * float(m.volume())
+            nxt[k] = s if ok else m
+        out, used = nxt, tol
     return out, used
 
 
