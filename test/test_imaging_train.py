@@ -367,6 +367,7 @@ def test_upsampled_input_run_caches_its_own_features_and_round_trips(tiny_set, t
                      "--out", str(tmp_path / "bad"), "--image-size", "300", "--init", "none"]) == 2
 
 
+@pytest.mark.slow     # ~100 s: two generators on freshly trained tiny checkpoints
 def test_generator_follows_the_image_count_head(tiny_set, tmp_path):
     """Image requests through the product decode to the count head's plan (here: a head
     that counts zero of everything, so only the root part is made)."""

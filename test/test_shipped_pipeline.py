@@ -35,6 +35,8 @@ def test_cabinet_collision_boxes_and_simulators(gen, tmp_path):
     assert rep.ok, rep.summary()
 
 
+@pytest.mark.slow     # loads the shipped image model (~15 s); the image path is also checked fast
+# on tiny checkpoints (test_imaging_train) and on the shipped file by test_metrics_eval's bench
 def test_shipped_image_model_reads_rendered_examples(gen, tmp_path):
     """The shipped image model on the project's own renders of the two built-in example
     objects (never in its training data): the bottle's exact structure from every view, the
