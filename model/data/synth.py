@@ -39,8 +39,10 @@ log = logging.getLogger(__name__)
 CATEGORY_WEIGHTS: dict[str, float] = {"StorageFurniture": 0.34, "Safe": 0.12, "Oven": 0.14,
                                       "WashingMachine": 0.14, "Bottle": 0.13, "USB": 0.13}
 # synth-2: strict overlap test (≤ 1 mm³ and ≤ 0.2 mm thick); synth-3: legs and top overhangs on
-# storage furniture, shaker (recessed-panel) doors, side-hinged oven doors.
-GENERATOR_VERSION = "synth-3"
+# storage furniture, shaker (recessed-panel) doors, side-hinged oven doors; synth-4: every
+# object also passes the geometric checks of the sim-ready audit (model.metrics.audit:
+# interpenetration over the per-joint sweeps, hinges, drawer axes, mesh health) or is redrawn.
+GENERATOR_VERSION = "synth-4"
 
 
 @dataclass
@@ -53,6 +55,8 @@ class SynthConfig:
     attach_distance: float = 0.004  # a moving part must stay within this of its parent (m)
     collision_abs_tol: float = 1e-9  # m³ (1 mm³) of intersection tolerated between two parts...
     collision_depth_tol: float = 2e-4  # ... and if its mean thickness 2V/A is below this (m)
+    audit: bool = True               # redraw objects the audit's geometric checks fail (synth-4)
+    audit_physics: bool = False      # ... and its MuJoCo check (exports every draw: slow)
 
 
 class GenerationRejected(RuntimeError):
@@ -870,6 +874,13 @@ def _axis_line(origin: np.ndarray, axis: np.ndarray, length: float):
     return meshops.cylinder(1e-4, length, segments=8).transform(M)
 
 
+def _audit_failures(obj: ArticulatedObject, physics: bool) -> list[str]:
+    """What the sim-ready audit finds wrong with a drawn object."""
+    from model.metrics.audit import AuditConfig, audit_object
+    rep = audit_object(obj, config=AuditConfig(physics=physics))
+    return ([rep.error] if rep.error else []) + rep.failures
+
+
 def _moving_ancestor(obj: ArticulatedObject, name: str) -> Optional[int]:
     i = obj.index_of(name)
     while i >= 0:
@@ -920,7 +931,12 @@ def generate_object(seed: int = 0, index: int = 0, config: Optional[SynthConfig]
                                manifolds=mans, stop_early=True)
             if rep.ok:
                 obj.validate()
-                return obj
+                failures = _audit_failures(obj, cfg.audit_physics) if cfg.audit else []
+                if not failures:
+                    return obj
+                log.debug("%s seed %d index %d attempt %d fails the audit: %s", cat, seed,
+                          index, attempt, failures)
+                break
             last = rep
             if rep.detached:
                 break           # shrinking does not re-attach a part: redraw
