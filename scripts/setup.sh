@@ -16,3 +16,11 @@ if [ "$(cat "$STAMP" 2>/dev/null || true)" != "$HASH" ]; then
   .venv/bin/python -c "import torch, rclpy, model" >/dev/null
   echo "$HASH" > "$STAMP"
 fi
+# The browser tests (artformer view / studio) drive Debian's headless Chromium; install it
+# where this machine can (root + apt-get). Without it those tests skip and say why.
+if ! command -v chromium >/dev/null 2>&1 && command -v apt-get >/dev/null 2>&1 \
+    && [ "$(id -u)" = "0" ]; then
+  (apt-get install -y -qq chromium >/dev/null 2>&1 \
+    || (apt-get update -qq >/dev/null 2>&1 && apt-get install -y -qq chromium >/dev/null 2>&1)) \
+    || echo "setup: could not install chromium; the browser tests will be skipped" >&2
+fi
