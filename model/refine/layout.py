@@ -14,7 +14,7 @@ Steps, in order (each can be switched off for ablation through :class:`LayoutCon
    plane at the middle of their overlap (a door as wide as the cabinet gives way to the
    drawers beside it).
 5. ``joints`` — door and lid hinges go onto the box edge on the side the model chose
-   (the long edge of a clearly oblong panel), turning outwards; drawers and trays slide along their face's normal, buttons into it,
+   (vertical for the doors of cabinets, safes and washers), turning outwards; drawers and trays slide along their face's normal, buttons into it,
    knobs and dials turn about their own centre; travel stays within the part's depth.
 
 Boxes are axis-aligned in the object frame at rest (DESIGN §2), as the tokens are.
@@ -37,7 +37,7 @@ ON_FACE = ("handle", "knob", "dial", "button")
 SMALL = ("knob", "dial", "button", "handle")
 GAP = 0.002            # m between separated siblings
 MIN_KEEP = 0.3         # a box keeps at least this share of its size when cut
-ASPECT = 1.3           # a panel this much longer than wide hinges on its long edge
+SIDE_HINGED = ("StorageFurniture", "Safe", "WashingMachine")   # their doors: vertical axes
 FRAME = 0.015          # m of the parent left around an opening (at least 4 % of its side)
 
 
@@ -254,11 +254,10 @@ def _hinge(obj: ArticulatedObject, i: int, face: tuple[int, float]) -> None:
     lo, hi = _lohi(p)
     a = _principal(j.axis)[0]
     ins = [d for d in range(3) if d != k]
-    longer, shorter = sorted(ins, key=lambda d: -p.bbox_size[d])
-    # an axis along the face normal cannot hinge a panel; a clearly oblong panel hinges on
-    # its long edge (a tall wardrobe door on a side, a wide oven door at the bottom)
-    if a == k or p.bbox_size[longer] >= ASPECT * p.bbox_size[shorter]:
-        a = longer
+    if p.label == "door" and obj.category in SIDE_HINGED and k != 2:
+        a = 2            # cabinet, safe and washer doors turn about a vertical axis
+    elif a == k:         # an axis along the face normal cannot hinge a panel: its long edge
+        a = max(ins, key=lambda d: p.bbox_size[d])
     u = [d for d in range(3) if d not in (a, k)][0]
     side = lo[u] if abs(j.origin[u] - lo[u]) <= abs(j.origin[u] - hi[u]) else hi[u]
     origin = p.bbox_center.copy()
