@@ -183,8 +183,9 @@ def test_refine_switch_and_eval_audit_rows(tiny, tmp_path, capsys):
     prompts.write_text("a cabinet with two drawers\n")
     assert audit_eval.main(["eval", "audit", "--checkpoint", str(tiny), "--seeds", "1",
                             "--freeform-file", str(prompts), "--no-everyday",
+                            "--rows", "floor,raw,refined,retrieval",
                             "--out", str(tmp_path / "ea")]) == 0
     data = json.loads((tmp_path / "ea" / "audit.json").read_text())
-    assert set(data) == {"raw model", "refined"}
+    assert set(data) == {"data floor", "raw model", "refined", "retrieval (refined)"}
     assert all(len(v["objects"]) == 1 for v in data.values())
     assert "sim-ready:" in capsys.readouterr().out
