@@ -103,3 +103,14 @@ def test_floaters_dropped_and_face_budget_kept():
     assert n0 > 10000 and faces <= 2000 and rep["simplify_tolerance"] > 0
     assert len(obj.parts[0].mesh.split(only_watertight=False)) == 1
     assert obj.parts[0].mesh.is_watertight
+
+
+def test_part_resolution_follows_metric_size():
+    from model.pipeline.api import GenerationConfig
+    from model.pipeline.generator import part_resolution
+    cfg = GenerationConfig()                       # 64 cells at most, 8 mm cells wanted
+    assert part_resolution((1.0, 0.5, 0.5), cfg) == 64      # a carcass: every cell counts
+    assert part_resolution((0.2, 0.02, 0.03), cfg) == 32    # a bar handle
+    assert part_resolution((0.03, 0.03, 0.02), cfg) == 16   # a knob
+    cfg.mesh_cell = 0
+    assert part_resolution((0.03, 0.03, 0.02), cfg) == 64
