@@ -236,3 +236,19 @@ def cylinder(radius: float, height: float, center: Sequence[float] = (0.0, 0.0, 
 
 def sphere(radius: float, center: Sequence[float] = (0.0, 0.0, 0.0), segments: int = 24):
     return _mf().Manifold.sphere(float(radius), int(segments)).translate([float(v) for v in center])
+
+
+def affine34(T: np.ndarray) -> np.ndarray:
+    """The 3x4 affine part of a 4x4 transform, as manifold3d's ``transform`` takes it."""
+    return np.ascontiguousarray(np.asarray(T)[:3, :4], dtype=np.float64)
+
+
+def axis_line(origin: Sequence[float], axis: Sequence[float], length: float):
+    """A thin cylinder (radius 0.1 mm) along a joint axis line, centred on its origin."""
+    a = np.asarray(axis, dtype=np.float64)
+    a = a / np.linalg.norm(a)
+    ref = np.array([1.0, 0.0, 0.0]) if abs(a[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    u = np.cross(a, ref)
+    u /= np.linalg.norm(u)
+    M = np.column_stack([u, np.cross(a, u), a, np.asarray(origin, dtype=np.float64)])
+    return cylinder(1e-4, length, segments=8).transform(M)

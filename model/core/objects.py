@@ -266,6 +266,15 @@ class ArticulatedObject:
                 return i
         raise KeyError(f"no part named {name!r}")
 
+    def subtree(self, index: int) -> list[int]:
+        """``index`` and every part below it (the parts a joint moves)."""
+        out, todo = [], [index]
+        while todo:
+            i = todo.pop()
+            out.append(i)
+            todo.extend(self.children(i))
+        return out
+
     def movable_parts(self) -> list[int]:
         return [i for i, p in enumerate(self.parts) if p.joint.type != JointType.FIXED]
 

@@ -798,10 +798,6 @@ class CheckReport:
         return not self.collisions and not self.detached
 
 
-def _T34(T: np.ndarray) -> np.ndarray:
-    return np.ascontiguousarray(T[:3, :4], dtype=np.float64)
-
-
 def check_object(obj: ArticulatedObject, states: int = 10, *, attach_distance: float = 0.004,
                  abs_tol: float = 1e-9, depth_tol: float = 2e-4, manifolds: Optional[dict] = None,
                  stop_early: bool = False) -> CheckReport:
@@ -817,7 +813,7 @@ def check_object(obj: ArticulatedObject, states: int = 10, *, attach_distance: f
     moving = set(names[i] for i in obj.movable_parts())
     for r in np.linspace(0.0, 1.0, states):
         T = obj.link_transforms(ratio=float(r))
-        posed = {n: mans[n].transform(_T34(T[n])) for n in names}
+        posed = {n: mans[n].transform(meshops.affine34(T[n])) for n in names}
         boxes = {n: np.asarray(posed[n].bounding_box()) for n in names}
         for i in range(len(names)):
             a = names[i]
@@ -850,7 +846,7 @@ def check_object(obj: ArticulatedObject, states: int = 10, *, attach_distance: f
                            for n in names]))
     for p in obj.parts:
         if p.name in moving and p.parent >= 0 and not p.joint.type.translates:
-            line = _axis_line(p.joint.origin, p.joint.axis, 2.5 * extent)
+            line = meshops.axis_line(p.joint.origin, p.joint.axis, 2.5 * extent)
             for other in (p.name, names[p.parent]):
                 gap = line.min_gap(mans[other], attach_distance * 3)
                 if gap > attach_distance:
@@ -859,19 +855,6 @@ def check_object(obj: ArticulatedObject, states: int = 10, *, attach_distance: f
                         return rep
     return rep
     return rep
-
-
-def _axis_line(origin: np.ndarray, axis: np.ndarray, length: float):
-    """A thin cylinder (radius 0.1 mm) along a joint axis line, centred on its origin."""
-    a = np.asarray(axis, dtype=np.float64)
-    a = a / np.linalg.norm(a)
-    ref = np.array([1.0, 0.0, 0.0]) if abs(a[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    u = np.cross(a, ref)
-    u /= np.linalg.norm(u)
-    v = np.cross(a, u)
-    M = np.zeros((3, 4))
-    M[:, 0], M[:, 1], M[:, 2], M[:, 3] = u, v, a, np.asarray(origin, dtype=np.float64)
-    return meshops.cylinder(1e-4, length, segments=8).transform(M)
 
 
 def _audit_failures(obj: ArticulatedObject, physics: bool) -> list[str]:

@@ -35,7 +35,7 @@ from typing import Iterable, Optional, Sequence
 
 import numpy as np
 
-from model.core import ArticulatedObject, JointType
+from model.core import ArticulatedObject, JointType, meshops
 
 log = logging.getLogger(__name__)
 
@@ -90,19 +90,6 @@ class ObjectAudit:
 # ---------------------------------------------------------------------------------------------
 # interpenetration and attachment
 # ---------------------------------------------------------------------------------------------
-def _T34(T: np.ndarray) -> np.ndarray:
-    return np.ascontiguousarray(T[:3, :4], dtype=np.float64)
-
-
-def _subtree(obj: ArticulatedObject, k: int) -> set[int]:
-    out, todo = set(), [k]
-    while todo:
-        i = todo.pop()
-        out.add(i)
-        todo.extend(obj.children(i))
-    return out
-
-
 def checked_pairs(obj: ArticulatedObject) -> list[tuple[int, int]]:
     """Every pair of parts except a parent and child fixed rigidly together."""
     pairs = []
@@ -136,7 +123,7 @@ def _states(obj: ArticulatedObject, n: int) -> Iterable[tuple[str, dict, Optiona
     for r in ratios:
         yield f"all joints at {r:.2f}", {p.name: float(r) for p in obj.parts}, None
     for k in obj.movable_parts():
-        moved = _subtree(obj, k)
+        moved = set(obj.subtree(k))
         for r in ratios[1:]:
             yield f"{obj.parts[k].name} alone at {r:.2f}", {obj.parts[k].name: float(r)}, moved
 
@@ -153,6 +140,20 @@ def _manifolds(obj: ArticulatedObject) -> tuple[dict, list[str]]:
             mans[i] = meshops.to_manifold(p.mesh, fallback="hull")
             hulls.append(p.name)
     return mans, hulls
+
+
+def pair_overlaps(obj: ArticulatedObject, mans: dict, vol: dict, pairs, T: dict):
+    """(i, j, intersection / smaller volume) of each pair of parts posed by ``T`` (link
+    transforms), skipping pairs whose bounding boxes are apart."""
+    posed: dict[int, object] = {}
+    for i, j in pairs:
+        for k in (i, j):
+            if k not in posed:
+                posed[k] = mans[k].transform(meshops.affine34(T[obj.parts[k].name]))
+        ba, bb = posed[i].bounding_box(), posed[j].bounding_box()
+        if any(ba[d] >= bb[d + 3] or bb[d] >= ba[d + 3] for d in range(3)):
+            continue
+        yield i, j, max(0.0, float((posed[i] ^ posed[j]).volume())) / min(vol[i], vol[j])
 
 
 def overlaps(obj: ArticulatedObject, states: int = 10, mans: Optional[dict] = None
@@ -175,29 +176,10 @@ def overlaps(obj: ArticulatedObject, states: int = 10, mans: Optional[dict] = No
             # a part behind a closed door or lid need not open through it
             todo = [(i, j) for i, j in relative if (i in moved) != (j in moved)
                     and not _closed_panel(obj, j if i in moved else i)]
-        posed: dict[int, object] = {}
-        for i, j in todo:
-            for k in (i, j):
-                if k not in posed:
-                    posed[k] = mans[k].transform(_T34(T[obj.parts[k].name]))
-            ba, bb = posed[i].bounding_box(), posed[j].bounding_box()
-            if any(ba[d] >= bb[d + 3] or bb[d] >= ba[d + 3] for d in range(3)):
-                continue
-            ratio_ij = max(0.0, float((posed[i] ^ posed[j]).volume())) / min(vol[i], vol[j])
-            if ratio_ij > worst:
-                worst, where = ratio_ij, (obj.parts[i].name, obj.parts[j].name, desc)
+        for i, j, r in pair_overlaps(obj, mans, vol, todo, T):
+            if r > worst:
+                worst, where = r, (obj.parts[i].name, obj.parts[j].name, desc)
     return worst, where
-
-
-def _axis_line(origin, axis, length: float):
-    """A 0.1 mm thin cylinder along a joint's axis line, centred on its origin."""
-    from model.core import meshops
-    a = np.asarray(axis, dtype=np.float64) / max(np.linalg.norm(axis), 1e-12)
-    ref = np.array([1.0, 0.0, 0.0]) if abs(a[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    u = np.cross(a, ref)
-    u /= np.linalg.norm(u)
-    M = np.column_stack([u, np.cross(a, u), a, np.asarray(origin, dtype=np.float64)])
-    return meshops.cylinder(1e-4, length, segments=8).transform(M)
 
 
 def attachment_gaps(obj: ArticulatedObject, mans: Optional[dict] = None, search: float = 0.05
@@ -219,11 +201,11 @@ def attachment_gaps(obj: ArticulatedObject, mans: Optional[dict] = None, search:
             if p.parent < 0 or k not in mans or p.parent not in mans:
                 continue
             if p.joint.type.translates:
-                pairs = [(mans[k].transform(_T34(T[p.name])),
-                          mans[p.parent].transform(_T34(T[obj.parts[p.parent].name])))]
+                pairs = [(mans[k].transform(meshops.affine34(T[p.name])),
+                          mans[p.parent].transform(meshops.affine34(T[obj.parts[p.parent].name])))]
             elif ratio == 0.0:
                 # a hinge bridges the panel's thickness between the part and its parent
-                line = _axis_line(p.joint.origin, p.joint.axis, 2.5 * extent)
+                line = meshops.axis_line(p.joint.origin, p.joint.axis, 2.5 * extent)
                 thick = float(np.min(_bounds(p)[1] - _bounds(p)[0]))
                 g = max(float(line.min_gap(mans[k], search)),
                         float(line.min_gap(mans[p.parent], search)) - thick)

@@ -14,10 +14,6 @@ from model.core import ArticulatedObject, JointType, meshops
 log = logging.getLogger(__name__)
 
 
-def _T34(T: np.ndarray) -> np.ndarray:
-    return np.ascontiguousarray(T[:3, :4], dtype=np.float64)
-
-
 def drop_floaters(man, min_share: float = 0.01):
     """Keep the shells of a Manifold holding at least ``min_share`` of its volume and of its
     surface (inside-out shells, i.e. enclosed voids, and specks go)."""
@@ -56,15 +52,6 @@ def simplify_to_budget(mans: dict, budget: int, tolerances=(0.001, 0.002, 0.004,
     return out, used
 
 
-def _subtree(obj: ArticulatedObject, k: int) -> list[int]:
-    out, todo = [], [k]
-    while todo:
-        i = todo.pop()
-        out.append(i)
-        todo.extend(obj.children(i))
-    return out
-
-
 HULL_SWEEP = ("drawer", "tray", "door", "lid", "button", "knob", "dial")
 
 
@@ -74,7 +61,7 @@ def swept_hull(obj: ArticulatedObject, mans: dict, k: int, states: int = 8):
     theirs: a drawer's cavity, a button's pocket; exact for a box that slides); other parts
     (a cap around its neck) as their own meshes, so what they enclose stays."""
     mf = meshops._mf()
-    sub = [i for i in _subtree(obj, k) if i in mans]
+    sub = [i for i in obj.subtree(k) if i in mans]
     if not sub:
         return None
     hull = obj.parts[k].label in HULL_SWEEP
@@ -88,7 +75,7 @@ def swept_hull(obj: ArticulatedObject, mans: dict, k: int, states: int = 8):
     for r in ratios:
         T = obj.link_transforms(ratio={obj.parts[k].name: float(r)})
         for i in sub:
-            m = src[i].transform(_T34(T[obj.parts[i].name]))
+            m = src[i].transform(meshops.affine34(T[obj.parts[i].name]))
             pieces.append(m.hull() if hull else m)
     return mf.Manifold.batch_boolean(pieces, mf.OpType.Add)
 
@@ -106,7 +93,7 @@ def carve_parents(obj: ArticulatedObject, mans: dict) -> dict[int, object]:
         if sweep is None or sweep.is_empty():
             continue
         before = float(mans[par].volume())
-        child = max(sum(float(mans[i].volume()) for i in _subtree(obj, k) if i in mans), 1e-12)
+        child = max(sum(float(mans[i].volume()) for i in obj.subtree(k) if i in mans), 1e-12)
         if float((mans[par] ^ sweep).volume()) < 1e-3 * child:
             continue                       # nothing in the way: no cut, no extra faces
         cut = mf.Manifold.batch_boolean([mans[par], sweep], mf.OpType.Subtract)
@@ -177,7 +164,7 @@ def shrink_limits(obj: ArticulatedObject, mans: dict, max_overlap: float = 0.01,
     shrunk = 0
     ratios = np.linspace(0.0, 1.0, states)[1:]
     for k in obj.movable_parts():
-        sub = set(_subtree(obj, k))
+        sub = set(obj.subtree(k))
         todo = [(i, j) for i, j in pairs if (i in sub) != (j in sub)]
         last = 0.0
         for r in ratios:
@@ -200,22 +187,13 @@ def shrink_limits(obj: ArticulatedObject, mans: dict, max_overlap: float = 0.01,
 
 
 def _below_ground(obj, mans, sub, T, ground: float) -> bool:
-    return any(float(mans[i].transform(_T34(T[obj.parts[i].name])).bounding_box()[2]) < ground
+    return any(float(mans[i].transform(meshops.affine34(T[obj.parts[i].name])).bounding_box()[2]) < ground
                for i in sub if i in mans)
 
 
 def _collides(obj, mans, vol, pairs, T, max_overlap) -> bool:
-    posed = {}
-    for i, j in pairs:
-        for n in (i, j):
-            if n not in posed:
-                posed[n] = mans[n].transform(_T34(T[obj.parts[n].name]))
-        ba, bb = posed[i].bounding_box(), posed[j].bounding_box()
-        if any(ba[d] >= bb[d + 3] or bb[d] >= ba[d + 3] for d in range(3)):
-            continue
-        if float((posed[i] ^ posed[j]).volume()) / min(vol[i], vol[j]) > max_overlap:
-            return True
-    return False
+    from model.metrics.audit import pair_overlaps
+    return any(r > max_overlap for _, _, r in pair_overlaps(obj, mans, vol, pairs, T))
 
 
 def add_runners(obj: ArticulatedObject, mans: dict, max_gap: float = 0.005,
