@@ -105,8 +105,12 @@ def _spec(urdf: Path, tmpdir: str, free: bool, cfg: PhysicsConfig):
         if b.name not in ("world", roots[0].name):
             b.gravcomp = 1.0
             # MuJoCo filters parent/child contacts except against bodies welded to the world,
-            # which the fixed-base root is; exclude them explicitly so both runs agree
+            # which the fixed-base root is; exclude them explicitly so both runs agree. A
+            # link without geometry (a screw's helper) passes the exclusion on: a cap and
+            # its bottle are parent and child through one screw joint
             spec.add_exclude(bodyname1=b.parent.name, bodyname2=b.name)
+            if not b.parent.geoms and b.parent.parent.name != "world":
+                spec.add_exclude(bodyname1=b.parent.parent.name, bodyname2=b.name)
     spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 1], name="audit_floor",
                             pos=[0, 0, _lowest_point(spec) - (0.0 if free else FIXED_CLEARANCE)])
     joints = [j for j in spec.joints if j.type in (mujoco.mjtJoint.mjJNT_HINGE,

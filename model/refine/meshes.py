@@ -227,13 +227,13 @@ def add_runners(obj: ArticulatedObject, mans: dict, max_gap: float = 0.005,
 
 
 def round_collision(obj: ArticulatedObject, mans: dict, solid: float = 0.7) -> list[str]:
-    """Turning parts other than doors and lids (knobs, dials, caps) collide as the convex
-    hull of their mesh when it is nearly convex: box pieces fitted to a round part sweep
-    their corners beyond the part when it turns. Returns the parts changed."""
+    """Knobs and dials collide as the convex hull of their mesh when it is nearly convex:
+    box pieces fitted to a round part sweep their corners beyond the part when it turns (a
+    cap keeps its pieces: its hull would swallow the neck). Returns the parts changed."""
     changed = []
     for k in obj.movable_parts():
         p = obj.parts[k]
-        if k not in mans or p.label in ("door", "lid") or not p.joint.type.rotates:
+        if k not in mans or p.label not in ("knob", "dial") or not p.joint.type.rotates:
             continue
         hull = mans[k].hull()
         if float(mans[k].volume()) >= solid * float(hull.volume()):
