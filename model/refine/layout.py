@@ -334,9 +334,9 @@ def refine_layout(obj: ArticulatedObject, config: Optional[LayoutConfig] = None)
                 _hinge(obj, i, face)
             elif p.joint.type == JointType.PRISMATIC and p.label in SLIDERS + ("button",):
                 _slide(obj, i, face)
-            elif p.label in ("knob", "dial") and p.joint.type in (JointType.REVOLUTE,
-                                                                   JointType.CONTINUOUS):
-                _spin(obj, i, face)
+            elif p.label in ("knob", "dial", "handle") and p.joint.type in (
+                    JointType.REVOLUTE, JointType.CONTINUOUS):
+                _spin(obj, i, face)      # a safe's turning handle too
             else:
                 continue
             report["joints"] += 1

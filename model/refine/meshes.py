@@ -198,9 +198,9 @@ def _collides(obj, mans, vol, pairs, T, max_overlap) -> bool:
 
 def add_runners(obj: ArticulatedObject, mans: dict, max_gap: float = 0.005,
                 thickness: float = 0.005) -> list[str]:
-    """A drawer or tray that does not touch its parent gets a runner: a thin slab of the
-    parent under its footprint, from its back to the parent's face, so it slides on
-    something. Returns the parts given one."""
+    """A drawer or tray that does not touch its parent at rest or fully open gets a runner:
+    a thin slab of the parent under its footprint, from its back to the parent's face, so
+    it slides on something. Returns the parts given one."""
     from .layout import SLIDERS
     mf = meshops._mf()
     added = []
@@ -209,7 +209,10 @@ def add_runners(obj: ArticulatedObject, mans: dict, max_gap: float = 0.005,
         par = p.parent
         if p.label not in SLIDERS or par < 0 or k not in mans or par not in mans:
             continue
-        if float(mans[k].min_gap(mans[par], 2 * max_gap)) <= max_gap:
+        T = obj.link_transforms(ratio={p.name: 1.0})[p.name]
+        opened = mans[k].transform(meshops.affine34(T))
+        if max(float(mans[k].min_gap(mans[par], 2 * max_gap)),
+               float(opened.min_gap(mans[par], 2 * max_gap))) <= max_gap:
             continue
         lo, hi = np.asarray(mans[k].bounding_box()).reshape(2, 3)
         plo, phi = np.asarray(mans[par].bounding_box()).reshape(2, 3)
