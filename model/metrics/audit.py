@@ -6,7 +6,8 @@ For one object (in memory or a URDF folder, ours or anyone's) it measures
   for every pair of parts except a parent and a child rigidly fixed together, at rest, at
   ``states`` openness ratios of all joints together, and with each joint alone swept over
   ``states`` ratios while the others stay at rest (a part behind a closed door or lid is
-  not required to pass through it: those pairs count in the all-joints sweep only);
+  not required to pass through it or its handle: those pairs count in the all-joints sweep
+  only);
 * **attachment** — a sliding part's gap to its parent at rest and fully open; a turning
   part's axis line to the part, and to its parent less the part's thickness (a hinge
   bridges a door's thickness);
@@ -104,8 +105,15 @@ def checked_pairs(obj: ArticulatedObject) -> list[tuple[int, int]]:
 
 
 def _closed_panel(obj: ArticulatedObject, i: int) -> bool:
-    p = obj.parts[i]
-    return p.label in HINGED_LABELS and p.joint.type == JointType.REVOLUTE
+    """Part ``i`` is a door or lid, or rides on one (its handle)."""
+    while i >= 0:
+        p = obj.parts[i]
+        if p.label in HINGED_LABELS and p.joint.type == JointType.REVOLUTE:
+            return True
+        if p.joint.type != JointType.FIXED:
+            return False
+        i = p.parent
+    return False
 
 
 def _moving_chain(obj: ArticulatedObject, i: int) -> frozenset:
@@ -173,7 +181,7 @@ def overlaps(obj: ArticulatedObject, states: int = 10, mans: Optional[dict] = No
         if moved is None:
             todo = pairs if n == 0 else relative
         else:
-            # a part behind a closed door or lid need not open through it
+            # a part behind a closed door or lid need not open through it (or its handle)
             todo = [(i, j) for i, j in relative if (i in moved) != (j in moved)
                     and not _closed_panel(obj, j if i in moved else i)]
         for i, j, r in pair_overlaps(obj, mans, vol, todo, T):
