@@ -34,7 +34,8 @@ PARAMS: tuple[ParamSpec, ...] = (
               "folder of the stage checkpoints; empty = the shipped model", read_only=True),
     ParamSpec("output_dir", "~/.ros/artformer_ros/output",
               "one folder per request is written here (URDF, meshes, metadata)", read_only=True),
-    ParamSpec("resolution", 64, "effective marching-cubes resolution per part",
+    ParamSpec("resolution", 64, "marching-cubes cells per side of the largest parts (smaller parts "
+              "get 16 or 32 when their cells stay under GenerationConfig.mesh_cell)",
               read_only=True, int_range=(8, 256)),
     ParamSpec("steps", 50, "DDIM sampling steps of the shape prior",
               read_only=True, int_range=(1, 1000)),
