@@ -407,10 +407,11 @@ def audit_urdf(path: Path, config: Optional[AuditConfig] = None) -> ObjectAudit:
         obj = import_urdf(path)
     except Exception as e:
         return ObjectAudit(name=Path(path).stem, path=str(path), error=f"cannot import: {e}")
-    return audit_object(obj, urdf=str(path), config=config, mesh_bytes=_mesh_bytes(path))
+    return audit_object(obj, urdf=str(path), config=config, mesh_bytes=visual_mesh_bytes(path))
 
 
-def _mesh_bytes(urdf: Path) -> int:
+def visual_mesh_bytes(urdf: Path) -> int:
+    """Bytes of the visual mesh files a URDF names."""
     from lxml import etree
 
     from model.export.importer import resolve_mesh_path
