@@ -61,7 +61,8 @@ def _stop(proc):
     try:
         proc.wait(timeout=20)
     except subprocess.TimeoutExpired:
-        proc.kill()
+        proc.kill()             # a server that ignores SIGINT still ends here
+        proc.wait(timeout=10)
 
 
 @pytest.fixture(scope="module")
