@@ -155,3 +155,17 @@ def test_audit_command(tmp_path, capsys):
     data = json.loads((tmp_path / "a.json").read_text())
     assert data["summary"]["sim_ready"] == 1.0 and data["objects"][0]["physics"] is None
     assert main(["audit", str(tmp_path / "missing")]) == 2
+
+
+def test_physics_check_reads_an_mjcf_model(tmp_path):
+    """`artformer convert --to mjcf` output goes through the same physics check."""
+    from model.core.example import example_cabinet
+    from model.export import export_object
+    from model.export.mjcf import export_mjcf
+    out = export_object(example_cabinet(), tmp_path / "cab", preview=False)
+    mj = export_mjcf(out.out_dir)
+    model_xml = [p for p in (tmp_path / "cab" / "mjcf").glob("*.xml") if p.name != "scene.xml"]
+    assert len(model_xml) == 1, mj
+    res = physics_check(model_xml[0])
+    assert res.ok, res.failures
+    assert res.joints == 3

@@ -18,8 +18,11 @@ within its limits (up to a tolerance for MuJoCo's soft limits), every joint reac
 ``reach`` of its range (a part blocked by overlapping collision geometry does not), and, for
 the free base, the root neither tips nor walks.
 
-    res = physics_check("out/cabinet/cabinet.urdf")
+    res = physics_check("out/cabinet/cabinet.urdf")     # or an MJCF model's .xml
     res.ok, res.runs["free"].max_tilt_deg
+
+An MJCF model (the object file of ``artformer convert --to mjcf``, not its scene) is read as
+it is, its actuators replaced by the servos above.
 """
 from __future__ import annotations
 
@@ -93,7 +96,13 @@ def _spec(urdf: Path, tmpdir: str, free: bool, cfg: PhysicsConfig):
 
     from model.export.simcheck import _resolved_copy
 
-    spec = mujoco.MjSpec.from_file(str(_resolved_copy(urdf, tmpdir, "mujoco", drop_visuals=True)))
+    if urdf.suffix.lower() == ".xml":          # an MJCF model (artformer convert --to mjcf)
+        spec = mujoco.MjSpec.from_file(str(urdf))
+        for a in list(spec.actuators):           # our own servos replace its actuators
+            spec.delete(a)
+    else:
+        spec = mujoco.MjSpec.from_file(str(_resolved_copy(urdf, tmpdir, "mujoco",
+                                                          drop_visuals=True)))
     spec.option.timestep = cfg.timestep
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
     roots = [b for b in spec.worldbody.bodies]
@@ -113,8 +122,12 @@ def _spec(urdf: Path, tmpdir: str, free: bool, cfg: PhysicsConfig):
                 spec.add_exclude(bodyname1=b.parent.parent.name, bodyname2=b.name)
     spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 1], name="audit_floor",
                             pos=[0, 0, _lowest_point(spec) - (0.0 if free else FIXED_CLEARANCE)])
+    # a joint an equality ties to another (an MJCF screw's slide follows its hinge) moves
+    # through that one and gets no servo of its own
+    coupled = {e.name1 for e in spec.equalities if e.type == mujoco.mjtEq.mjEQ_JOINT}
     joints = [j for j in spec.joints if j.type in (mujoco.mjtJoint.mjJNT_HINGE,
-                                                   mujoco.mjtJoint.mjJNT_SLIDE)]
+                                                   mujoco.mjtJoint.mjJNT_SLIDE)
+              and j.name not in coupled]
     for j in joints:
         j.actgravcomp = True
         j.armature = cfg.min_inertia
@@ -234,7 +247,8 @@ def _run(urdf: Path, free: bool, cfg: PhysicsConfig, tmpdir: str) -> tuple[Physi
 
 
 def physics_check(urdf: "str | Path", config: Optional[PhysicsConfig] = None) -> PhysicsResult:
-    """Fixed-base and free-base sweeps of a URDF in MuJoCo; never raises for a bad file."""
+    """Fixed-base and free-base sweeps of a URDF (or an MJCF object model, ``.xml``) in
+    MuJoCo; never raises for a bad file."""
     import time
 
     cfg = config or PhysicsConfig()
