@@ -9,11 +9,9 @@ metric (model.metrics.alignment) — the structure the prompt text asks for, par
 from __future__ import annotations
 
 import logging
-from pathlib import Path
 from typing import Optional
 
 import numpy as np
-import torch
 
 from model.core.objects import JointType
 from model.data import format as fmt

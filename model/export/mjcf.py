@@ -243,8 +243,6 @@ def _build(model: URDFModel, assets: _Assets, *, floating: bool, on_floor: bool)
     world = etree.SubElement(root, "worldbody")
 
     screws = _screw_pairs(model)
-    helper_of_child = {hinge.child: (helper, slide, hinge)
-                       for helper, (slide, hinge) in screws.items()}
     materials: dict[tuple, str] = {}
     dropped: list[str] = []
     joints_out: list[str] = []

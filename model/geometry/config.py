@@ -8,7 +8,7 @@ checkpoint alone rebuilds its network.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, fields
 
 
 @dataclass

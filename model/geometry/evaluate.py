@@ -11,7 +11,6 @@ from __future__ import annotations
 import logging
 import statistics
 import time
-from pathlib import Path
 from typing import Optional
 
 import numpy as np

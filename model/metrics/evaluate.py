@@ -16,7 +16,6 @@ test prompts only (they have a reference object); POR, alignment and validity us
 """
 from __future__ import annotations
 
-import json
 import logging
 import time
 from dataclasses import asdict, dataclass, field

@@ -5,7 +5,6 @@ still collides. Exact booleans through manifold3d; every output mesh is a closed
 from __future__ import annotations
 
 import logging
-from typing import Optional
 
 import numpy as np
 
