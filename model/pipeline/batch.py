@@ -258,19 +258,24 @@ def _end_with_newline(path: Path) -> None:
                 f.write(b"\n")
 
 
+def _record(manifest, entry: dict, summary, t0: float, progress) -> None:
+    """Append a finished job to the manifest and count it."""
+    _append(manifest, entry)
+    if entry["status"] == "ok":
+        summary.done += 1
+    else:
+        summary.failed += 1
+    summary.seconds = time.perf_counter() - t0
+    if progress:
+        progress(entry, summary)
+
+
 def _run_here(config, todo, root, manifest, summary, t0, audit, preview, mesh_uri, progress):
     from model.pipeline.generator import Generator
     gen = Generator.load(config)
     for job in todo:
         entry = _run_job(gen, job, str(root), audit, preview, mesh_uri)
-        _append(manifest, entry)
-        if entry["status"] == "ok":
-            summary.done += 1
-        else:
-            summary.failed += 1
-        summary.seconds = time.perf_counter() - t0
-        if progress:
-            progress(entry, summary)
+        _record(manifest, entry, summary, t0, progress)
 
 
 def run_batch(prompts: Sequence[str], out_dir: os.PathLike, *, samples: int = 1,
@@ -385,15 +390,8 @@ def run_batch(prompts: Sequence[str], out_dir: os.PathLike, *, samples: int = 1,
                 in_flight.pop(msg["worker"], None)
                 if entry["id"] not in remaining:
                     continue
-                _append(manifest, entry)
                 remaining.discard(entry["id"])
-                if entry["status"] == "ok":
-                    summary.done += 1
-                else:
-                    summary.failed += 1
-                summary.seconds = time.perf_counter() - t0
-                if progress:
-                    progress(entry, summary)
+                _record(manifest, entry, summary, t0, progress)
     except BaseException:                       # interrupted or failed: stop the workers now
         for p in procs.values():
             p.terminate()
