@@ -434,8 +434,10 @@ def audit_paths(paths: Sequence[str], config: Optional[AuditConfig] = None,
     return [audit_urdf(u, config) for u in urdfs]
 
 
-def summarise(reps: Sequence[ObjectAudit]) -> dict:
-    """Shares and medians over a set of audits (the row of a results table)."""
+def summarise(reps: Sequence[ObjectAudit], config: Optional[AuditConfig] = None) -> dict:
+    """Shares and medians over a set of audits (the row of a results table), each check
+    against ``config``'s thresholds (the defaults when None)."""
+    cfg = config or AuditConfig()
     n = len(reps)
     if not n:
         return {"objects": 0}
@@ -444,8 +446,8 @@ def summarise(reps: Sequence[ObjectAudit]) -> dict:
     return {
         "objects": n,
         "sim_ready": ok(lambda r: r.sim_ready),
-        "overlap_ok": ok(lambda r: not r.error and r.max_overlap <= AuditConfig.max_overlap),
-        "attached": ok(lambda r: not r.error and r.max_gap <= AuditConfig.max_gap),
+        "overlap_ok": ok(lambda r: not r.error and r.max_overlap <= cfg.max_overlap),
+        "attached": ok(lambda r: not r.error and r.max_gap <= cfg.max_gap),
         "hinges_ok": ok(lambda r: not r.error and all(h["ok"] for h in r.hinges)),
         "slides_ok": ok(lambda r: not r.error and all(s["ok"] for s in r.slides)),
         "mesh_ok": ok(lambda r: not r.error and r.watertight and r.floater_faces == 0),
@@ -458,7 +460,7 @@ def summarise(reps: Sequence[ObjectAudit]) -> dict:
     }
 
 
-def audit_table(reps: Sequence[ObjectAudit]) -> str:
+def audit_table(reps: Sequence[ObjectAudit], config: Optional[AuditConfig] = None) -> str:
     """A markdown table, one row per object, then the summary."""
     rows = ["| object | sim-ready | overlap | gap mm | hinges | slides | comps | floaters | faces | physics | first failure |",
             "|---|---|---|---|---|---|---|---|---|---|---|"]
@@ -470,7 +472,7 @@ def audit_table(reps: Sequence[ObjectAudit]) -> str:
             f"{sum(s['ok'] for s in r.slides)}/{len(r.slides)} | {r.worst_components} | "
             f"{r.floater_faces} | {r.faces} | {phys} | "
             f"{(r.error or (r.failures[0] if r.failures else '')).replace('|', '/')} |")
-    s = summarise(reps)
+    s = summarise(reps, config)
     if s["objects"]:
         rows.append("")
         rows.append(f"sim-ready: {s['sim_ready']:.1%} of {s['objects']} objects "

@@ -33,13 +33,8 @@ ROWS = {"floor": "data floor", "raw": "raw model", "refined": "refined",
         "retrieval": "retrieval (refined)"}
 
 
-def mesh_bytes(urdf: str) -> int:
-    from model.metrics.audit import visual_mesh_bytes
-    return visual_mesh_bytes(Path(urdf))
-
-
 def _rows(gen, prompts, seeds: int, out: Path, row: str, progress: bool):
-    from model.metrics.audit import ObjectAudit, audit_object
+    from model.metrics.audit import ObjectAudit, audit_object, visual_mesh_bytes
     gen.config.refine = row != "raw"
     gen.config.geometry = "retrieve" if row == "retrieval" else "generate"
     reps = []
@@ -54,7 +49,8 @@ def _rows(gen, prompts, seeds: int, out: Path, row: str, progress: bool):
         except Exception as e:  # a failed generation is an object that is not sim-ready
             reps.append(ObjectAudit(name=f"{n:03d}", error=f"generation failed: {e}"))
             continue
-        rep = audit_object(res.obj, urdf=exp.urdf_path, mesh_bytes=mesh_bytes(exp.urdf_path))
+        rep = audit_object(res.obj, urdf=exp.urdf_path,
+                           mesh_bytes=visual_mesh_bytes(Path(exp.urdf_path)))
         rep.name = f"{n:03d}_{res.obj.name}"
         reps.append(rep)
     return reps
@@ -65,7 +61,7 @@ def _floor(n: int, out: Path, progress: bool):
     audited the same way."""
     from model.data.synth import generate_object
     from model.export import export_object
-    from model.metrics.audit import audit_object
+    from model.metrics.audit import audit_object, visual_mesh_bytes
     idx = range(n)
     if progress:
         from tqdm import tqdm
@@ -74,7 +70,8 @@ def _floor(n: int, out: Path, progress: bool):
     for i in idx:
         obj = generate_object(0, i)
         exp = export_object(obj, out / "floor" / f"{i:03d}", preview=False)
-        reps.append(audit_object(obj, urdf=exp.urdf_path, mesh_bytes=mesh_bytes(exp.urdf_path)))
+        reps.append(audit_object(obj, urdf=exp.urdf_path,
+                                 mesh_bytes=visual_mesh_bytes(Path(exp.urdf_path))))
     return reps
 
 

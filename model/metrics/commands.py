@@ -193,10 +193,10 @@ def audit_main(argv: list[str]) -> int:
     if not reps:
         print("artformer audit: no .urdf file under " + " ".join(args.paths), file=sys.stderr)
         return 2
-    print(audit_table(reps))
+    print(audit_table(reps, cfg))
     if args.json:
         Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-        Path(args.json).write_text(json.dumps({"summary": summarise(reps),
+        Path(args.json).write_text(json.dumps({"summary": summarise(reps, cfg),
                                                "objects": [r.to_dict() for r in reps]}, indent=1))
         print(f"wrote {args.json}")
     if args.sheet:

@@ -41,6 +41,7 @@ log = logging.getLogger(__name__)
 # a welded base does not stand on the floor: the floor sits this far under its lowest point,
 # so a part that moves along the base's underside (a swivel cap's plate) does not scrape it
 FIXED_CLEARANCE = 0.002
+FLOOR = "audit_floor"
 
 
 @dataclass
@@ -120,8 +121,8 @@ def _spec(urdf: Path, tmpdir: str, free: bool, cfg: PhysicsConfig):
             spec.add_exclude(bodyname1=b.parent.name, bodyname2=b.name)
             if not b.parent.geoms and b.parent.parent.name != "world":
                 spec.add_exclude(bodyname1=b.parent.parent.name, bodyname2=b.name)
-    spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 1], name="audit_floor",
-                            pos=[0, 0, _lowest_point(spec) - (0.0 if free else FIXED_CLEARANCE)])
+    # placed under the object's lowest point once the model is compiled (_run)
+    spec.worldbody.add_geom(type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 1], name=FLOOR)
     # a joint an equality ties to another (an MJCF screw's slide follows its hinge) moves
     # through that one and gets no servo of its own
     coupled = {e.name1 for e in spec.equalities if e.type == mujoco.mjtEq.mjEQ_JOINT}
@@ -139,16 +140,12 @@ def _spec(urdf: Path, tmpdir: str, free: bool, cfg: PhysicsConfig):
     return spec, [j.name for j in joints]
 
 
-def _lowest_point(spec) -> float:
-    """Height of the lowest point of the collision geometry at rest (where the floor goes:
-    the object stands on it, whatever its own z = 0)."""
-    import mujoco
-    m = spec.compile()
-    d = mujoco.MjData(m)
-    mujoco.mj_forward(m, d)
+def _lowest_point(m, d, skip: int) -> float:
+    """Height of the lowest point of the collision geometry in ``d``'s pose, geom ``skip``
+    (the floor) left out."""
     low = np.inf
     for g in range(m.ngeom):
-        if m.geom_contype[g] == 0 and m.geom_conaffinity[g] == 0:
+        if g == skip or (m.geom_contype[g] == 0 and m.geom_conaffinity[g] == 0):
             continue
         R = d.geom_xmat[g].reshape(3, 3)
         c, half = m.geom_aabb[g, :3], m.geom_aabb[g, 3:]
@@ -180,6 +177,9 @@ def _run(urdf: Path, free: bool, cfg: PhysicsConfig, tmpdir: str) -> tuple[Physi
     spec, names = _spec(urdf, tmpdir, free, cfg)
     m = spec.compile()
     d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)                       # the rest pose
+    floor = m.geom(FLOOR).id
+    m.geom_pos[floor, 2] = _lowest_point(m, d, floor) - (0.0 if free else FIXED_CLEARANCE)
     run = PhysicsRun(base="free" if free else "fixed")
     rng = _ranges(m, names)
     # start every joint at its lower limit (the rest state of our exports is 0 = lower)
