@@ -16,13 +16,27 @@ def _count_phrases(n):
     words = {vocab.number_word(n), str(n)}
     if n == 1:
         words |= {"a", "an", "one", "a single"}
+    if n == 2:
+        words.add("a pair of")
+    if n == 4:
+        words.add("two pairs of")
     return words
 
 
 def _mentions(text: str, label: str, n: int) -> bool:
-    """True if `text` has '<count> [adjective...] <synonym of label>' with the right number."""
-    nouns = vocab.PART_SYNONYMS[label] if n == 1 else vocab.PART_PLURALS[label]
+    """True if `text` has '<count> [adjective...] <synonym of label>' with the right number,
+    or the compound '<count>-<label>' ("a three-drawer dresser"), or an 'R x C keypad' of n
+    buttons."""
+    roles = [w for (c, lab), ws in vocab.ROLE_NAMES.items() if lab == label for w in ws]
+    nouns = list(vocab.PART_SYNONYMS[label] if n == 1 else vocab.PART_PLURALS[label])
+    nouns += roles if n == 1 else [vocab.plural(w) for w in roles]
     t = text.lower()
+    if re.search(rf"\b{re.escape(vocab.number_word(n))}-{label}\b", t):
+        return True
+    if label == "button":
+        for r, c in re.findall(r"(\d+) x (\d+) keypad", t):
+            if int(r) * int(c) == n:
+                return True
     for count in _count_phrases(n):
         for noun in nouns:
             # up to two adjective words between the count and the noun

@@ -52,14 +52,18 @@ CATEGORY_TEXT: dict[str, str] = {
 CATEGORY_SYNONYMS: dict[str, tuple[str, ...]] = {
     "StorageFurniture": ("cabinet", "storage cabinet", "cupboard", "dresser", "chest of drawers",
                          "sideboard", "storage unit", "nightstand", "filing cabinet", "wardrobe",
-                         "storage furniture", "chest"),
-    "Safe": ("safe", "strongbox", "lockbox", "security safe", "safe box", "vault box"),
-    "Oven": ("oven", "stove", "cooker", "range", "kitchen oven", "wall oven"),
+                         "storage furniture", "chest", "locker", "bedside table", "credenza",
+                         "armoire", "file cabinet", "bedside cabinet"),
+    "Safe": ("safe", "strongbox", "lockbox", "security safe", "safe box", "vault box",
+             "microwave-sized safe", "small safe", "compact safe"),
+    "Oven": ("oven", "stove", "cooker", "range", "kitchen oven", "wall oven", "kitchen range"),
     "WashingMachine": ("washing machine", "washer", "laundry machine", "clothes washer",
-                       "front-loader", "top-loader", "front-loading washer", "top-loading washer"),
-    "Bottle": ("bottle", "flask", "water bottle", "jar", "container", "drink bottle"),
+                       "front-loader", "top-loader", "front-loading washer", "top-loading washer",
+                       "top loader", "front-loading washing machine"),
+    "Bottle": ("bottle", "flask", "water bottle", "jar", "container", "drink bottle",
+               "flip-top bottle", "sports bottle", "screw-top bottle"),
     "USB": ("usb stick", "usb drive", "flash drive", "thumb drive", "memory stick", "pen drive",
-            "usb flash drive", "usb"),
+            "usb flash drive", "usb", "swivel usb stick", "swivel flash drive"),
 }
 
 # --- parts ----------------------------------------------------------------------------------
@@ -127,6 +131,28 @@ LABEL_MOTION_ADJECTIVES: dict[tuple[str, str], tuple[str, ...]] = {
     ("cap", "revolute"): ("swivel", "swivelling"),
     ("cap", "prismatic"): ("slide-off", "removable"),
 }
+# --- sides: the ONE definition of "left" and "right" -------------------------------------------
+# Object frame (DESIGN §2, REP-103): x forward out of the object's front, y to the object's own
+# left, z up. "Left" and "right" in every text of this project (the generator's hinge sides, the
+# descriptions, the prompt parser, the alignment check) are the VIEWER's: a person standing in
+# front of the object and facing it looks towards -x, so the viewer's left is -y and the
+# viewer's right is +y. "Back" is -x (away from the viewer), "front" +x.
+SIDE_DIRECTIONS: dict[str, tuple[float, float, float]] = {
+    "left": (0.0, -1.0, 0.0),     # the viewer's left, facing the object's front
+    "right": (0.0, 1.0, 0.0),
+    "top": (0.0, 0.0, 1.0),
+    "bottom": (0.0, 0.0, -1.0),
+    "front": (1.0, 0.0, 0.0),
+    "back": (-1.0, 0.0, 0.0),
+}
+
+
+def side_of(vector) -> str:
+    """The side word (:data:`SIDE_DIRECTIONS`) a direction in the object frame points to."""
+    v = [float(x) for x in vector]
+    return max(SIDE_DIRECTIONS, key=lambda k: sum(a * b for a, b in zip(SIDE_DIRECTIONS[k], v)))
+
+
 # Hinge / mounting sides used by the generator (metadata "side").
 SIDE_WORDS: dict[str, tuple[str, ...]] = {
     "left": ("left", "left-hand"),
@@ -135,6 +161,48 @@ SIDE_WORDS: dict[str, tuple[str, ...]] = {
     "bottom": ("bottom", "lower"),
     "front": ("front",),
     "back": ("back", "rear"),
+}
+
+# --- spatial facts (model.data.describe.spatial_summary) --------------------------------------
+# Direction a door or lid opens (where its free edge goes): "down" (a drop-down oven door),
+# "up" (a lid, a top-hinged flap), "sideways" (a side-hinged door).
+# Each phrase completes "the <part> ..." and also says it turns on a hinge.
+OPENING_PHRASES: dict[str, tuple[str, ...]] = {
+    "down": ("swings down", "drops down", "folds down", "swings open downward"),
+    "up": ("swings up", "flips up", "swings open upward", "lifts up on its hinge"),
+    "sideways": ("swings open sideways", "swings to the side", "swings sideways"),
+}
+# Arrangement of a group of like parts ("layout" of the summary): a single row, a single column
+# (one above the other) or a grid of rows x columns.
+ROW_PHRASES: tuple[str, ...] = ("side by side", "in a row", "next to each other", "in a single row")
+COLUMN_PHRASES: tuple[str, ...] = ("stacked", "stacked one above the other", "one above the other",
+                                   "in a single column", "stacked vertically")
+# Everyday names a description may use for an object, each with the geometric condition it
+# needs (model.data.describe._everyday_names decides; these are the words).
+EVERYDAY_NAMES: dict[str, tuple[str, ...]] = {
+    "dresser": ("dresser", "chest of drawers"),          # drawers only
+    "nightstand": ("nightstand", "bedside table", "bedside cabinet"),   # small and low
+    "sideboard": ("sideboard", "credenza"),               # low and wide
+    "wardrobe": ("wardrobe", "armoire"),                  # tall, doors
+    "locker": ("locker",),                                # tall, narrow, doors only
+    "filing cabinet": ("filing cabinet", "file cabinet"), # one column of drawers, narrow
+    "small safe": ("microwave-sized safe", "small safe", "compact safe"),
+    "range": ("range", "kitchen range"),                  # four or more knobs
+    "wall oven": ("wall oven",),                          # side-hinged door
+    "front-loader": ("front-loader", "front-loading washer", "front-loading washing machine"),
+    "top-loader": ("top loader", "top-loader", "top-loading washer"),
+    "flip-top bottle": ("flip-top bottle", "sports bottle"),
+    "screw-top bottle": ("screw-top bottle",),
+    "thumb drive": ("thumb drive", "flash drive", "usb stick"),
+    "swivel usb": ("swivel usb stick", "swivel flash drive"),
+}
+
+# Names of a part by its role, used only where the role is certain: (category, label) -> words.
+ROLE_NAMES: dict[tuple[str, str], tuple[str, ...]] = {
+    ("WashingMachine", "dial"): ("program dial", "program selector"),
+    ("WashingMachine", "drawer"): ("detergent drawer", "soap drawer"),
+    ("Safe", "dial"): ("combination dial",),
+    ("Oven", "knob"): ("control knob", "burner knob"),
 }
 
 NUMBER_WORDS: tuple[str, ...] = ("zero", "one", "two", "three", "four", "five", "six", "seven",

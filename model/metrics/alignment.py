@@ -1,10 +1,16 @@
 """Alignment (DESIGN §7): does the generated object have the structure the prompt asks for?
 
 The structure asked for comes from :func:`model.metrics.prompt_parse.parse_prompt` (category,
-exact counts / lower bounds per part kind, acceptable joint types per part kind). The structure
-generated is read from the object's part labels, joint types and category. A prompt is
-*aligned* when every check it asks for passes; prompts that ask for nothing parseable are
-reported separately (``checked=False``) and left out of the alignment share.
+exact counts / lower bounds per part kind, acceptable joint types per part kind, spatial facts)
+or from the free-form set's hand-written annotation. The structure generated is read from the
+object's part labels, joint types and category, and its spatial facts from its boxes and joints
+(:func:`model.data.describe.spatial_summary`). A prompt is *aligned* when every count / label /
+joint check it asks for passes; prompts that ask for nothing parseable are reported separately
+(``checked=False``) and left out of the alignment share.
+
+Spatial facts are scored apart (``spatial_ok``, and per kind in ``spatial``): hinge side,
+opening direction, arrangement (row / column / grid, rows, columns) and position (the viewer's
+left / right, top / bottom, one part kind above another), only over prompts that state one.
 """
 from __future__ import annotations
 
@@ -13,7 +19,9 @@ from typing import Iterable, Sequence
 
 from model.core import ArticulatedObject, JointType
 
-from .prompt_parse import ExpectedStructure, parse_prompt
+from .prompt_parse import SPATIAL_KINDS, ExpectedStructure, parse_prompt
+
+SPATIAL_KIND_NAMES = ("hinge", "opening", "arrangement", "position")
 
 
 @dataclass
@@ -21,11 +29,15 @@ class GeneratedStructure:
     category: str | None
     counts: dict[str, int]
     joint_types: dict[str, list[str]]   # label -> joint type name of every part, in order
+    spatial: dict[str, dict] = field(default_factory=dict)   # describe.spatial_summary
 
     @classmethod
     def from_object(cls, obj: ArticulatedObject) -> "GeneratedStructure":
-        return cls.from_labels(obj.category or None, [p.label for p in obj.parts],
-                               [p.joint.type for p in obj.parts])
+        from model.data.describe import spatial_summary
+        out = cls.from_labels(obj.category or None, [p.label for p in obj.parts],
+                              [p.joint.type for p in obj.parts])
+        out.spatial = spatial_summary(obj)
+        return out
 
     @classmethod
     def from_labels(cls, category: str | None, labels: Sequence[str],
@@ -46,9 +58,46 @@ class AlignmentResult:
     counts_ok: bool | None
     joints_ok: bool | None
     failures: list[str] = field(default_factory=list)
+    spatial_ok: bool | None = None      # every spatial fact right (None: the prompt states none)
+    spatial: dict = field(default_factory=dict)   # kind (SPATIAL_KIND_NAMES) -> all right
 
     def to_json(self) -> dict:
         return asdict(self)
+
+
+def _fact_ok(key: str, want, label: str, got: dict) -> bool:
+    """One spatial fact of one part kind against the generated object's spatial summary."""
+    have = got.get(label)
+    if not have:
+        return False
+    if key in ("layout", "rows", "columns"):
+        return have.get(key) == want
+    if key in ("above", "below"):
+        from model.data.describe import is_above
+        return all(bool(is_above(got, label, o) if key == "above" else is_above(got, o, label))
+                   for o in want)
+    g = set(have.get(key) or [])
+    w = set(want)
+    if key == "hinge" and "side" in w:       # "side-hinged": on the left or on the right
+        w.discard("side")
+        return bool(g) and g <= (w | {"left", "right"}) and w <= g and bool(g & {"left", "right"})
+    return g == w
+
+
+def check_spatial(expected: ExpectedStructure, got: GeneratedStructure) -> tuple[dict, list[str]]:
+    """Per kind (hinge / opening / arrangement / position): are all its stated facts right."""
+    kinds: dict[str, bool] = {}
+    fails: list[str] = []
+    for label, facts in expected.spatial.items():
+        for key, want in facts.items():
+            ok = _fact_ok(key, want, label, got.spatial)
+            kind = SPATIAL_KINDS[key]
+            kinds[kind] = kinds.get(kind, True) and ok
+            if not ok:
+                have = (got.spatial.get(label) or {}).get(key, "missing") \
+                    if key not in ("above", "below") else "not so"
+                fails.append(f"{label}.{key}: {have} != {want}")
+    return kinds, fails
 
 
 def check_alignment(expected: ExpectedStructure, got: GeneratedStructure) -> AlignmentResult:
@@ -79,8 +128,10 @@ def check_alignment(expected: ExpectedStructure, got: GeneratedStructure) -> Ali
                 joints_ok = False
                 fails.append(f"{lab} joints {have or 'missing'} not in {ok_types}")
     checks = [c for c in (cat_ok, counts_ok, joints_ok) if c is not None]
+    kinds, sfails = check_spatial(expected, got)
     return AlignmentResult(bool(checks) and all(checks), bool(checks), cat_ok, counts_ok,
-                           joints_ok, fails)
+                           joints_ok, fails + sfails,
+                           spatial_ok=all(kinds.values()) if kinds else None, spatial=kinds)
 
 
 def alignment_of(prompt: str, obj: ArticulatedObject) -> AlignmentResult:
@@ -95,8 +146,15 @@ def summarise(results: Sequence[AlignmentResult]) -> dict:
         vals = [v for v in vals if v is not None]
         return float(sum(vals) / len(vals)) if vals else None
 
-    return {"alignment": share([r.aligned for r in checked]),
-            "category": share([r.category_ok for r in checked]),
-            "counts": share([r.counts_ok for r in checked]),
-            "joints": share([r.joints_ok for r in checked]),
-            "n_checked": len(checked), "n_prompts": len(results)}
+    out = {"alignment": share([r.aligned for r in checked]),
+           "category": share([r.category_ok for r in checked]),
+           "counts": share([r.counts_ok for r in checked]),
+           "joints": share([r.joints_ok for r in checked]),
+           "n_checked": len(checked), "n_prompts": len(results),
+           "spatial": share([r.spatial_ok for r in results]),
+           "n_spatial": sum(r.spatial_ok is not None for r in results)}
+    for kind in SPATIAL_KIND_NAMES:
+        vals = [r.spatial.get(kind) for r in results]
+        out[f"spatial_{kind}"] = share(vals)
+        out[f"n_spatial_{kind}"] = sum(v is not None for v in vals)
+    return out

@@ -103,6 +103,24 @@ EXACT_NUMBER_PHRASES = {"a pair of": 2, "pair of": 2, "a couple of": 2, "couple 
                         "one more": 1, "an extra": 1, "one": 1}
 
 
+# Spatial facts a prompt can state, and their values (model.data.describe.spatial_summary).
+SIDES = ("left", "right", "top", "bottom", "back", "front", "side")   # "side": left or right
+SPATIAL_KEYS: dict[str, tuple[str, ...]] = {
+    "hinge": SIDES,
+    "opens": ("down", "up", "sideways"),
+    "layout": ("row", "column", "grid"),
+    "rows": ("int",),
+    "columns": ("int",),
+    "hpos": ("left", "middle", "right"),
+    "vpos": ("top", "middle", "bottom"),
+    "above": (),    # values: part labels
+    "below": (),
+}
+SPATIAL_KINDS = {"hinge": "hinge", "opens": "opening", "layout": "arrangement",
+                 "rows": "arrangement", "columns": "arrangement", "hpos": "position",
+                 "vpos": "position", "above": "position", "below": "position"}
+
+
 @dataclass
 class ExpectedStructure:
     """What a prompt asks for. Labels not mentioned are unconstrained."""
@@ -110,15 +128,87 @@ class ExpectedStructure:
     counts: dict[str, int] = field(default_factory=dict)       # exact counts
     min_counts: dict[str, int] = field(default_factory=dict)   # lower bounds (no exact count)
     joint_types: dict[str, list[str]] = field(default_factory=dict)  # acceptable types
+    # spatial facts per label (see SPATIAL_KEYS): {"door": {"hinge": ["left"]}, ...}
+    spatial: dict[str, dict] = field(default_factory=dict)
 
     def to_json(self) -> dict:
-        return {"category": self.category, "counts": dict(self.counts),
-                "min_counts": dict(self.min_counts),
-                "joint_types": {k: list(v) for k, v in self.joint_types.items()}}
+        out = {"category": self.category, "counts": dict(self.counts),
+               "min_counts": dict(self.min_counts),
+               "joint_types": {k: list(v) for k, v in self.joint_types.items()}}
+        if self.spatial:
+            out["spatial"] = {k: dict(v) for k, v in self.spatial.items()}
+        return out
 
     @property
     def is_empty(self) -> bool:
-        return not (self.category or self.counts or self.min_counts or self.joint_types)
+        return not (self.category or self.counts or self.min_counts or self.joint_types
+                    or self.spatial)
+
+    @property
+    def num_parts(self) -> int:
+        """Countable parts the prompt asks for (exact counts, else lower bounds)."""
+        return sum(self.counts.values()) + sum(v for k, v in self.min_counts.items()
+                                               if k not in self.counts)
+
+    # -- the free-form file's annotation line ---------------------------------------------------
+    def to_line(self) -> str:
+        """``CATEGORY drawer=3 knob>=2 door:revolute door.hinge=left drawer.layout=column``."""
+        items = [self.category or "-"]
+        items += [f"{k}={v}" for k, v in self.counts.items()]
+        items += [f"{k}>={v}" for k, v in self.min_counts.items()]
+        items += [f"{k}:{'/'.join(v)}" for k, v in self.joint_types.items()]
+        for lab, facts in self.spatial.items():
+            for key, v in facts.items():
+                val = "/".join(str(x) for x in v) if isinstance(v, (list, tuple)) else str(v)
+                items.append(f"{lab}.{key}={val}")
+        return " ".join(items)
+
+    @classmethod
+    def from_line(cls, line: str) -> "ExpectedStructure":
+        """Inverse of :meth:`to_line`; a clear ValueError on anything it does not know."""
+        items = line.split()
+        if not items:
+            raise ValueError("empty structure line")
+        cat = None if items[0] == "-" else items[0]
+        if cat is not None and cat not in vocab.CATEGORIES:
+            raise ValueError(f"unknown category {cat!r} (one of {list(vocab.CATEGORIES)} or -)")
+        out = cls(category=cat)
+        labels = set(vocab.COUNTABLE_LABELS)
+        for it in items[1:]:
+            m = re.fullmatch(r"([a-z]+)\.([a-z]+)=([a-z0-9/]+)", it)
+            if m:
+                lab, key, val = m.groups()
+                if lab not in labels or key not in SPATIAL_KEYS:
+                    raise ValueError(f"{it!r}: label must be one of {sorted(labels)}, fact one "
+                                     f"of {list(SPATIAL_KEYS)}")
+                vals = val.split("/")
+                bad = [v for v in vals if v not in SPATIAL_KEYS[key] and not
+                       (SPATIAL_KEYS[key] == ("int",) and v.isdigit())
+                       and not (key in ("above", "below") and v in labels)]
+                if bad:
+                    raise ValueError(f"{it!r}: {bad} not among {SPATIAL_KEYS[key]}")
+                fact = int(vals[0]) if SPATIAL_KEYS[key] == ("int",) else \
+                    (vals[0] if key == "layout" else sorted(vals))
+                out.spatial.setdefault(lab, {})[key] = fact
+                continue
+            m = re.fullmatch(r"([a-z]+)(=|>=|:)([a-z0-9/]+)", it)
+            if not m or m.group(1) not in labels:
+                raise ValueError(f"cannot read {it!r} (label=N, label>=N, label:type/type or "
+                                 f"label.fact=value; labels {sorted(labels)})")
+            lab, op, val = m.groups()
+            if op == ":":
+                types = val.split("/")
+                bad = [t for t in types if t not in vocab.MOTION_SYNONYMS]
+                if bad:
+                    raise ValueError(f"{it!r}: unknown joint types {bad}")
+                out.joint_types[lab] = sorted(types)
+            elif not val.isdigit():
+                raise ValueError(f"{it!r}: a count must be a whole number")
+            elif op == "=":
+                out.counts[lab] = int(val)
+            else:
+                out.min_counts[lab] = int(val)
+        return out
 
 
 @dataclass
@@ -127,6 +217,8 @@ class _Tok:
     text: str
     value: object = None
     plural: bool = False
+    start: int = 0     # character span in the sentence
+    end: int = 0
 
 
 # --------------------------------------------------------------------------------------------
@@ -224,20 +316,24 @@ def _tokenize(sentence: str) -> list[_Tok]:
     toks = []
     for m in regex.finditer(sentence):
         s = m.group(0)
+        a, b = m.span()
         if s in table:
             kind, value, plural = table[s]
-            toks.append(_Tok(kind, s, value, plural))
+            toks.append(_Tok(kind, s, value, plural, a, b))
         elif s.isdigit():
-            toks.append(_Tok("NUM", s, int(s)))
+            toks.append(_Tok("NUM", s, int(s), False, a, b))
         elif s in ",:;()":
-            toks.append(_Tok("PUNCT", s))
+            toks.append(_Tok("PUNCT", s, None, False, a, b))
         else:
-            toks.append(_Tok("WORD", s))
+            toks.append(_Tok("WORD", s, None, False, a, b))
     return toks
 
 
 def _sentences(text: str) -> list[str]:
     text = text.lower().replace("—", ", ").replace("–", ", ").replace("&", " and ")
+    # "next to each other" is not a distribution, "one another" not a count
+    text = re.sub(r"\beach other\b", "eachother", text)
+    text = re.sub(r"\bone another\b", "oneanother", text)
     text = re.sub(r"\(?\b[a-z]+[- ]style\b\)?", " ", text)   # "(knob style)" is a look, not a part
     text = re.sub(r"\s+", " ", text)
     return [s.strip() for s in re.split(r"[.!?\n]+", text) if s.strip()]
@@ -338,14 +434,242 @@ def _distributive_target(toks: list[_Tok], k: int) -> str | None:
     return None
 
 
+# --------------------------------------------------------------------------------------------
+# spatial facts ("hinged on the left", "opens downward", "in two columns", "on the right",
+# "above the door"). Left / right are the viewer's (model.data.vocab.SIDE_DIRECTIONS).
+# --------------------------------------------------------------------------------------------
+_N = r"(\d+|" + "|".join(sorted(vocab.NUMBER_WORDS[1:13], key=len, reverse=True)) + r"|a single|single)"
+_SIDE = r"(left|right|top|bottom|back|rear|upper|lower|side)"
+_SIDE_NAME = {"rear": "back", "upper": "top", "lower": "bottom"}
+HINGED = ("door", "lid")
+ARRANGED = ("drawer", "door", "lid", "tray", "knob", "dial", "button")
+
+
+def _num(word: str) -> int:
+    word = word.strip()
+    if word.isdigit():
+        return int(word)
+    if word in ("a single", "single"):
+        return 1
+    return vocab.NUMBER_VALUES[word]
+
+
+@dataclass
+class _Fact:
+    key: str
+    values: list
+    start: int
+    end: int
+    mode: str            # "post": the part named before; "pre": the part named next
+    relation_to: str | None = None
+
+
+def _rewrite_counts(sentence: str) -> tuple[str, list[_Fact]]:
+    """Rewrite grid wordings that carry a count ("two rows of three drawers" -> "6 drawers",
+    "a 3 x 3 keypad" -> "9 keypad buttons") and return the arrangement facts they state."""
+    facts: list[_Fact] = []
+
+    def grid(m, rows: int, cols: int, tail: str) -> str:
+        return f"{rows * cols} {tail}".rstrip() + " "
+
+    out, pos = [], 0
+    pat = re.compile(
+        rf"\b(?:in |into |as )?(?:a |an )?{_N}\s?(?:x|×|by)\s?{_N}\s(grid|array|keypad|matrix|layout)(\s+of\b)?"
+        rf"|\b{_N} (rows|columns) of {_N}\b(\s+(?=\w))?"
+        rf"|\b(?:a|an|the|its) keypad( of\b)?")
+    for m in pat.finditer(sentence):
+        out.append(sentence[pos:m.start()])
+        here = sum(len(x) for x in out)
+        g = m.groups()
+        if g[0] is not None:                 # R x C grid / keypad
+            R, C = _num(g[0]), _num(g[1])
+            arr = {"layout": "grid" if R > 1 and C > 1 else ("row" if R == 1 else "column"),
+                   "rows": R, "columns": C}
+            if g[2] == "keypad" and not g[3]:
+                text = f"{R * C} keypad buttons"
+                mode = "pre"
+            elif g[3]:
+                text = f"{R * C}"
+                mode = "pre"
+            else:
+                text = "in a grid"
+                mode = "post"
+            for k, v in arr.items():
+                facts.append(_Fact(k, [v], here, here if mode == "pre" else here + len(text), mode))
+            out.append(text + (" " if mode == "pre" and not text.endswith("buttons") else ""))
+        elif g[4] is not None:               # N rows of M (drawers)
+            a, b = _num(g[4]), _num(g[6])
+            R, C = (a, b) if g[5] == "rows" else (b, a)
+            followed = g[7] is not None and _part_follows(sentence[m.end():])
+            if followed:
+                text = f"{R * C} "
+                mode = "pre"
+            else:
+                text = "in a grid"
+                mode = "post"
+            lay = "grid" if R > 1 and C > 1 else ("row" if R == 1 else "column")
+            for k, v in (("layout", lay), ("rows", R), ("columns", C)):
+                facts.append(_Fact(k, [v], here, here if mode == "pre" else here + len(text), mode))
+            out.append(text)
+        else:                                 # "a keypad" (of ...)
+            out.append("" if g[8] else "several keypad buttons")
+        pos = m.end()
+    out.append(sentence[pos:])
+    return re.sub(r"[ ]{2,}", " ", "".join(out)) if not facts else "".join(out), facts
+
+
+def _part_follows(text: str) -> bool:
+    """The next few words name a part ("three drawers", "small doors")."""
+    for k, t in enumerate(_tokenize(text)[:4]):
+        if t.kind == "PART":
+            return True
+        if t.kind == "PUNCT" or (t.kind == "WORD" and t.text in STOP_WORDS):
+            return False
+    return False
+
+
+_SPATIAL_PATTERNS: list[tuple[str, str, str]] = [
+    # (key, regex, mode); values come from group 1 (and 2) or the fixed value after '='
+    ("hinge", rf"\bhinged (?:on|at|along|to) (?:the |its |their )?{_SIDE}(?:[- ]hand)?(?: sides?| edges?| ends?)?"
+              rf"(?:,? (?:and|or) (?:on |at )?(?:the |its )?{_SIDE}(?:[- ]hand)?(?: sides?| edges?)?)?", "post"),
+    ("hinge", rf"\b{_SIDE}[- ]hinged\b", "pre"),
+    ("hinge", rf"\bwith (?:a|its|the|their) {_SIDE}(?:[- ]hand)? hinges?\b", "post"),
+    ("hinge", rf"\bhinges? (?:is |are |sits? |sit |runs? )?(?:on|at|along) (?:the |its )?{_SIDE}(?: side| edge)?\b", "post"),
+    ("hinge+sideways", r"\b(?:swings?|opens?|swinging|opening) (?:open |out )?(?:to|towards) the (left|right)\b", "post"),
+    ("opens=down", r"\b(?:opens?|swings?|folds?|drops?|pulls?|flips?|tips?|falls?|tilts?)(?: open| out)?,? ?down(?:ward|wards)?\b", "post"),
+    ("opens=down", r"\b(?:drop|fold|pull|flip)[- ]down\b", "pre"),
+    ("opens=down", r"\bdrops open\b", "post"),
+    ("opens=up", r"\b(?:opens?|swings?|flips?|lifts?|folds?|tilts?|lifting|flipping)(?: open| out)?,? ?up(?:ward|wards)?\b", "post"),
+    ("opens=up", r"\b(?:flip|lift|swing)[- ]up\b", "pre"),
+    ("opens=sideways", r"\b(?:opens?|swings?|swinging|opening)(?: open| out)? (?:sideways|to the side|to one side)\b", "post"),
+    ("opens=sideways+hinge=side", r"\bside[- ](?:opening|hinged)\b", "pre"),
+    ("layout=column", r"\b(?:stacked(?: vertically| up)?(?: one (?:above|on top of|over) (?:the other|another))?"
+                      r"|one (?:above|on top of|over|below|under) (?:the other|another)"
+                      r"|on top of (?:eachother|oneanother)|in a (?:single |vertical )?(?:column|stack)"
+                      r"|vertically stacked|in a vertical line)\b", "post"),
+    ("layout=column", r"\ba (?:vertical )?stack of\b", "pre"),
+    ("layout=row", r"\b(?:side[- ]by[- ]side|in a (?:single |horizontal |neat |straight )?(?:row|line)"
+                   r"|next to (?:eachother|oneanother)|beside (?:eachother|oneanother)"
+                   r"|in a horizontal line)\b", "post"),
+    ("layout=row", r"\ba (?:horizontal )?row of\b", "pre"),
+    ("layout=grid", r"\bin a grid\b", "post"),
+    ("rows", rf"\bin {_N} (?:horizontal )?rows\b", "post"),
+    ("columns", rf"\bin {_N} (?:vertical )?columns\b", "post"),
+    ("relation", r"\b(above|over|on top of|below|under|underneath|beneath)\b(?: (?:the|a|an|its|their|both))?", "post"),
+    ("hpos", r"\b(?:on|at|to) the (left|right)(?:[- ]hand)?(?: side| end| half)?\b", "post"),
+    ("vpos", r"\b(?:on|at) the (top|bottom)\b(?! of)|\bon (top)\b(?! of)|\bat the (base)\b", "post"),
+]
+_COMPILED = [(k, re.compile(r), m) for k, r, m in _SPATIAL_PATTERNS]
+_ABOVE = {"above", "over", "on top of"}
+_PRE_SIDE = {"left": ("hpos", "left"), "right": ("hpos", "right"), "left-hand": ("hpos", "left"),
+             "right-hand": ("hpos", "right"), "top": ("vpos", "top"), "bottom": ("vpos", "bottom"),
+             "upper": ("vpos", "top"), "lower": ("vpos", "bottom")}
+
+
+def _spatial_facts(sentence: str, toks: list[_Tok]) -> list[_Fact]:
+    """Every spatial phrase of a sentence (spans of earlier patterns are not re-read)."""
+    work = sentence
+    facts: list[_Fact] = []
+    for key, rx, mode in _COMPILED:
+        for m in rx.finditer(work):
+            a, b = m.span()
+            vals = [v for v in m.groups() if v]
+            if key == "relation":
+                nxt = [t for t in toks if t.start >= b][:2]
+                part = next((t for t in nxt if t.kind == "PART"), None)
+                if part is not None and all(t.kind in ("PART", "WORD", "NUM", "DET") for t in nxt):
+                    rel = "above" if vals[0] in _ABOVE else "below"
+                    facts.append(_Fact(rel, [part.value], a, part.end, "post", part.value))
+                    b = part.end
+                else:   # "a door underneath": below the part named before it, if any
+                    facts.append(_Fact("relprev", ["above" if vals[0] in _ABOVE else "below"],
+                                       a, b, "post"))
+            elif key == "hinge+sideways":
+                facts.append(_Fact("hinge", vals, a, b, mode))
+                facts.append(_Fact("opens", ["sideways"], a, b, mode))
+            elif "=" in key:
+                for kv in key.split("+"):
+                    k, v = kv.split("=")
+                    facts.append(_Fact(k, [v], a, b, mode))
+            elif key in ("rows", "columns"):
+                facts.append(_Fact(key, [_num(vals[0])], a, b, mode))
+            elif key == "vpos":
+                facts.append(_Fact("vpos", ["bottom" if vals[0] == "base" else vals[0]], a, b, mode))
+            else:
+                facts.append(_Fact(key, [_SIDE_NAME.get(v, v) for v in vals], a, b, mode))
+            work = work[:a] + " " * (b - a) + work[b:]
+    # side adjectives right before a part: "a left door", "the upper drawer"
+    for k, t in enumerate(toks):
+        if t.kind == "WORD" and t.text in _PRE_SIDE and work[t.start:t.end] == t.text:
+            nxt = toks[k + 1:k + 3]
+            if nxt and (nxt[0].kind == "PART" or (len(nxt) > 1 and nxt[0].kind in ("WORD", "MOTION")
+                                                   and nxt[1].kind == "PART")):
+                key, val = _PRE_SIDE[t.text]
+                facts.append(_Fact(key, [val], t.start, t.end, "pre"))
+    return facts
+
+
+def _attach(facts: list[_Fact], toks: list[_Tok], earlier: list[str],
+            spatial: dict[str, dict]) -> None:
+    """Attach each fact to the part it describes and merge it into ``spatial``."""
+    relation_objects = {(f.relation_to, f.end) for f in facts if f.relation_to}
+    parts = [t for t in toks if t.kind == "PART" and (t.value, t.end) not in relation_objects]
+    for f in facts:
+        allowed = HINGED if f.key in ("hinge", "opens") else \
+            ARRANGED if f.key in ("layout", "rows", "columns") else vocab.COUNTABLE_LABELS
+        target = None
+        # a phrase right before a part noun (adjectives between) is about that part:
+        # "stacked hinged doors", "a drop-down door"
+        nxt = [t for t in toks if t.start >= f.end][:3]
+        for t in nxt:
+            if t.kind == "PART":
+                target = t.value if t.value in allowed else None
+                break
+            if t.kind not in ("WORD", "MOTION") or t.text in STOP_WORDS:
+                break
+            if f.mode != "pre" and t.kind == "WORD" and t.text not in SIDE_ADJECTIVES:
+                break   # "... side by side that ..." is not a pre-modifier
+        if f.mode == "pre" and target is None:
+            target = next((t.value for t in nxt if t.kind == "PART" and t.value in allowed), None)
+        if target is None:
+            before = [t.value for t in parts if t.end <= f.start and t.value in allowed]
+            target = before[-1] if before else None
+        if target is None:
+            prev = [lab for lab in earlier if lab in allowed]
+            target = prev[-1] if prev else None
+        if target is None:
+            after = [t.value for t in parts if t.start >= f.end and t.value in allowed]
+            target = after[0] if after else None
+        if target is None or target == f.relation_to:
+            continue
+        if f.key == "relprev":
+            subject = [t for t in parts if t.end <= f.start and t.value == target]
+            other = [t.value for t in parts if subject and t.end <= subject[-1].start
+                     and t.value != target]
+            if other:
+                f = _Fact(f.values[0], [other[-1]], f.start, f.end, f.mode)
+            else:
+                f = _Fact("vpos", ["top" if f.values[0] == "above" else "bottom"], f.start,
+                          f.end, f.mode)
+        facts_of = spatial.setdefault(target, {})
+        if f.key in ("layout", "rows", "columns"):
+            facts_of[f.key] = f.values[0]
+        else:
+            facts_of[f.key] = sorted(set(facts_of.get(f.key, [])) | set(f.values))
+
+
 def parse_prompt(text: str) -> ExpectedStructure:
     """The structure a prompt asks for (see the module docstring)."""
     out = ExpectedStructure()
     mentions: list[_Mention] = []
     motion_links: list[tuple[frozenset, str, bool]] = []
     last_part: str | None = None
+    earlier_parts: list[str] = []
     for si, sentence in enumerate(_sentences(text)):
+        sentence, grid_facts = _rewrite_counts(sentence)
         toks = _tokenize(sentence)
+        _attach(grid_facts + _spatial_facts(sentence, toks), toks, earlier_parts, out.spatial)
+        earlier_parts += [t.value for t in toks if t.kind == "PART"]
         prefix_motion_at: set[int] = set()
         for k, t in enumerate(toks):
             if t.kind == "CAT" and out.category is None:
