@@ -97,7 +97,7 @@ def test_train_commands_api_and_resume(prim_data, tmp_path):
                 "--steps", "30", "--no-progress", "--threads", "1") == 0
     ck = torch.load(sdf_out / "ckpt.pt", weights_only=True)
     assert ck["step"] == 30 and ck["data_version"] == "primitives-3-6" and "optimizer" in ck
-    assert ck["argv"][:3] == ["artformer", "train", "sdf"]
+    assert ck["command"].startswith("artformer train sdf") and ck["format"] == 2
     # resume continues from step 30 to 40
     assert _cli("train", "sdf", "--data", str(prim_data), "--out", str(sdf_out), "--preset", "tiny",
                 "--steps", "40", "--resume", "--no-progress", "--threads", "1") == 0

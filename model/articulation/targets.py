@@ -24,6 +24,7 @@ log = logging.getLogger(__name__)
 
 class StandInTargets:
     name = "stand-in"
+    fingerprint = "stand-in"      # model.core.checkpoint.STAND_IN: no shape prior
 
     def __init__(self, z_dim: int = 32, num_codebooks: int = 4, codebook_size: int = 16,
                  cs_dim: int = 64, seed: int = 0):
@@ -70,12 +71,16 @@ class PriorTargets:
 
     def __init__(self, prior_path: str, sdf_path: str, n_points: int | None = None,
                  seed: int = 0):
+        from model.core.checkpoint import prior_fingerprint
         from model.geometry.api import ShapeModel
+        from model.geometry.checkpoint import read_checkpoint
         self.prior_path, self.sdf_path = str(prior_path), str(sdf_path)
         self.shape = ShapeModel.load(sdf_path, prior_path)
+        sdf_ck = read_checkpoint(sdf_path, "sdf")
+        # the identity of this prior, stored in every checkpoint trained on its targets
+        self.fingerprint = prior_fingerprint(sdf_ck, read_checkpoint(prior_path, "prior"))
         if n_points is None:   # the auto-encoder's own training input size
-            ck = torch.load(sdf_path, map_location="cpu", weights_only=False)
-            n_points = int(ck.get("train", {}).get("n_points", 1024))
+            n_points = int(sdf_ck.get("train_config", {}).get("n_points", 1024))
         pc = self.shape.prior.cfg
         self.z_dim, self.num_codebooks = int(pc.z_dim), int(pc.n_codebooks)
         self.codebook_size, self.cs_dim = int(pc.codebook_size), int(pc.cs_dim)

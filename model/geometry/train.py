@@ -261,7 +261,7 @@ def train_prior(args: RunArgs) -> dict:
         val = train
     tcfg = _train_cfg(preset.prior_train, args, len(train), dist.world)
     torch.set_num_threads(max(1, tcfg.threads // dist.world))
-    n_pts = int(ae_ckpt.get("train", {}).get("n_points", 1024))
+    n_pts = int(ae_ckpt.get("train_config", {}).get("n_points", 1024))
     t0 = time.time()
     z_train = encode_parts(ae, train, n_pts, seed=args.seed)          # (M, Z)
     z_val = encode_parts(ae, val, n_pts, seed=args.seed + 1)
@@ -310,7 +310,8 @@ def export_weights(src: str | os.PathLike, dst: str | os.PathLike, kind: str) ->
     """Strip a training checkpoint (no optimizer) and store fp16 weights. -> bytes written."""
     model, ckpt = load_checkpoint(src, kind)
     save_checkpoint(dst, kind, model, data_version=ckpt["data_version"], seed=ckpt["seed"],
-                    argv=ckpt["argv"], step=ckpt["step"], extra=ckpt.get("extra"), half=True)
+                    command=ckpt["command"], step=ckpt["step"], extra=ckpt.get("extra"),
+                    device=ckpt.get("device", "cpu"), half=True)
     return os.path.getsize(dst)
 
 

@@ -22,7 +22,6 @@ training record). ``model.imaging.model.load_image_model`` picks it up.
 """
 from __future__ import annotations
 
-import io
 import json
 import logging
 import time
@@ -35,6 +34,7 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
+from model.core.checkpoint import CheckpointError
 from model.core.state import half_state
 
 from .features import CACHE_SPLIT
@@ -44,8 +44,9 @@ log = logging.getLogger(__name__)
 COUNT_SPLIT = CACHE_SPLIT      # the head reads the features entering block 15 (192 x 7 x 7)
 
 
-class CountHeadError(RuntimeError):
-    """A count head that does not fit its image checkpoint (or is damaged)."""
+# a count head that does not fit its image checkpoint (or is damaged); the one
+# CheckpointError, kept under this name for one release
+CountHeadError = CheckpointError
 
 
 @dataclass
@@ -201,7 +202,7 @@ def train_count_head(image_ckpt: str, data_root: str, render_root: str, out: str
     """Train a count head for ``image_ckpt`` on the rendered train objects of ``data_root``
     (+ every split of each ``extra`` (data, renders) pair); pick the best of ``tc.evals``
     evaluations on the val renders; write OUT/image.pt (the image checkpoint + the head)."""
-    from model.articulation.checkpoint import read_checkpoint
+    from model.articulation.checkpoint import read_checkpoint, save_dict
     from model.data import format as fmt
 
     tc = tc or CountTrainConfig()
@@ -288,10 +289,7 @@ def train_count_head(image_ckpt: str, data_root: str, render_root: str, out: str
                   "image_checkpoint": str(image_ckpt)}}
     out_dir = Path(out)
     out_dir.mkdir(parents=True, exist_ok=True)
-    buf = io.BytesIO()
-    torch.save(ck, buf)
-    from model.data.format import atomic_write_bytes
-    atomic_write_bytes(out_dir / "image.pt", buf.getvalue())
+    save_dict(out_dir / "image.pt", ck)
     (out_dir / "count_history.json").write_text(json.dumps(ck["count_head"]["train"], indent=1))
     log.info("count head: chose step %d (val exact %.4f); wrote %s", rec["step"], rec["val_exact"],
              out_dir / "image.pt")

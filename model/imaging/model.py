@@ -21,6 +21,7 @@ from typing import Optional, Union
 
 import torch
 
+from model.core.checkpoint import CheckpointError
 from model.encoders.image import ENCODE_BATCH, ImageEncoder, ImageEncoderConfig, ImageLike, preprocess
 
 log = logging.getLogger(__name__)
@@ -28,8 +29,9 @@ log = logging.getLogger(__name__)
 SHIPPED = Path(__file__).resolve().parent.parent / "weights" / "image_small.pt"
 
 
-class ImageModelError(RuntimeError):
-    """The file is not an image-conditioned checkpoint (or is missing)."""
+# the file is not an image-conditioned checkpoint (or is missing); the one CheckpointError,
+# kept under this name for one release
+ImageModelError = CheckpointError
 
 
 class ImageArticulationModel:
@@ -89,9 +91,12 @@ class ImageArticulationModel:
                               seed=seed, modality="image", **kwargs)
 
 
-def load_image_model(path: Union[str, os.PathLike, None] = None) -> ImageArticulationModel:
-    """The one loader of image checkpoints (``None`` = the shipped model/weights/image_small.pt)."""
-    from model.articulation.checkpoint import CheckpointError, build_network, read_checkpoint
+def load_image_model(path: Union[str, os.PathLike, None] = None,
+                     prior: Optional[str] = None) -> ImageArticulationModel:
+    """The one loader of image checkpoints (``None`` = the shipped model/weights/image_small.pt).
+    ``prior``: fingerprint of the shape prior it will run with (model.core.checkpoint); a
+    model trained against another prior is refused."""
+    from model.articulation.checkpoint import build_network, read_checkpoint
     from model.articulation.decode import ArticulationModel
     p = Path(path) if path is not None else SHIPPED
     if p.is_dir() and (p / "image.pt").exists():
@@ -99,10 +104,7 @@ def load_image_model(path: Union[str, os.PathLike, None] = None) -> ImageArticul
     if not p.exists():
         raise ImageModelError(f"no image checkpoint at {p}; train one with `artformer train image` "
                               f"(the shipped one is model/weights/image_small.pt)")
-    try:
-        ckpt = read_checkpoint(p)
-    except CheckpointError as e:
-        raise ImageModelError(str(e)) from e
+    ckpt = read_checkpoint(p, prior=prior)
     if ckpt.get("condition") != "image":
         raise ImageModelError(f"{p} is a text-conditioned transformer checkpoint, not an image "
                               f"model; pass an `artformer train image` checkpoint")

@@ -510,20 +510,14 @@ def _trunk_entry(trunk: Optional[dict]) -> dict:
 
 
 def write_half(src: Path, dst: Path) -> None:
-    """fp16 copy of an image checkpoint (network and fine-tuned encoder tail)."""
-    import io
-
-    from model.articulation.checkpoint import read_checkpoint
-    from model.data.format import atomic_write_bytes
+    """fp16 copy of an image checkpoint (network and fine-tuned encoder tail), no optimizer."""
+    from model.articulation.checkpoint import read_checkpoint, save_dict
     ck = read_checkpoint(src)
     ck["state_dict"] = half_state(ck["state_dict"])
     enc = ck.get("image_encoder", {})
     enc["tail"] = half_state(enc.get("tail", {}))
-    for k in ("optimizer",):
-        ck.pop(k, None)
-    buf = io.BytesIO()
-    torch.save(ck, buf)
-    atomic_write_bytes(dst, buf.getvalue())
+    ck.pop("optimizer", None)
+    save_dict(dst, ck)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -37,7 +37,6 @@ caches and the shipped checkpoint see the same numbers.
 from __future__ import annotations
 
 import hashlib
-import io
 import json
 import logging
 import time
@@ -50,6 +49,7 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
+from model.core.checkpoint import CheckpointError, CheckpointMeta, read_checkpoint, write_checkpoint
 from model.core.state import half_state
 
 from .counts import COUNT_SPLIT, CountHead, CountHeadConfig, count_targets, exact_counts
@@ -59,8 +59,8 @@ log = logging.getLogger(__name__)
 TRUNK_KIND = "image_trunk"
 
 
-class TrunkError(RuntimeError):
-    """A trunk file that is missing, damaged or not a trunk."""
+# a trunk file that is missing, damaged or not a trunk (kept as a name for one release)
+TrunkError = CheckpointError
 
 
 @dataclass
@@ -94,14 +94,9 @@ def load_trunk(path) -> dict:
     p = Path(path)
     if p.is_dir():
         p = p / "trunk.pt"
-    if not p.exists():
-        raise TrunkError(f"no trunk file at {p}; `artformer train image-trunk` writes one")
-    try:
-        tr = torch.load(p, map_location="cpu", weights_only=False)
-    except Exception as e:  # noqa: BLE001 - any damage is reported the same way
-        raise TrunkError(f"{p} cannot be read as a trunk file ({e})") from e
-    if not isinstance(tr, dict) or tr.get("kind") != TRUNK_KIND or not tr.get("state_dict"):
-        raise TrunkError(f"{p} is not an `artformer train image-trunk` file")
+    tr = read_checkpoint(p, TRUNK_KIND, how="`artformer train image-trunk` writes one")
+    if not tr["state_dict"]:
+        raise TrunkError(f"{p} is not an `artformer train image-trunk` file (no weights)")
     if trunk_tag(tr["state_dict"]) != tr.get("tag"):
         raise TrunkError(f"{p}: the weights do not match their recorded hash (damaged file)")
     return tr
@@ -109,12 +104,12 @@ def load_trunk(path) -> dict:
 
 def count_labels_of(image_ckpt=None) -> list[str]:
     """The count labels of an image checkpoint (default: the shipped one)."""
-    from model.articulation.checkpoint import read_checkpoint
+    from model.articulation.checkpoint import read_checkpoint as read_articulation
     from .model import SHIPPED
     path = SHIPPED if image_ckpt is None else Path(image_ckpt)
     if not Path(path).exists():
         raise FileNotFoundError(f"no image checkpoint at {path}")
-    labels = list(read_checkpoint(path)["config"].get("count_labels") or [])
+    labels = list(read_articulation(path)["config"].get("count_labels") or [])
     if not labels:
         raise ValueError(f"{path} has no count labels")
     return labels
@@ -161,11 +156,8 @@ def initial_trunk(path, freeze: int) -> dict:
         return {k: v.float() for k, v in tr["state_dict"].items()}
     if not p.exists():
         raise FileNotFoundError(f"--init-trunk {p} does not exist")
-    try:
-        ck = torch.load(p, map_location="cpu", weights_only=False)
-    except Exception as e:  # noqa: BLE001 - any damage is reported the same way
-        raise ValueError(f"--init-trunk {p} cannot be read ({e})") from e
-    state = (ck.get("image_encoder") or {}).get("trunk") if isinstance(ck, dict) else None
+    ck = read_checkpoint(p, "articulation", how="pass a trunk.pt or an image checkpoint")
+    state = (ck.get("image_encoder") or {}).get("trunk")
     if not state:
         raise ValueError(f"{p} is neither a trunk file nor an image checkpoint with a fine-tuned trunk")
     first = first_block(state)
@@ -334,7 +326,7 @@ def train_trunk(data_root: str, render_root: str, out: str, *, extra: Optional[l
     rec, state, head_state, centre_state = best
     out_dir = Path(out)
     out_dir.mkdir(parents=True, exist_ok=True)
-    trunk = {"kind": TRUNK_KIND, "freeze": tc.freeze, "split": COUNT_SPLIT, "tag": trunk_tag(state),
+    trunk = {"freeze": tc.freeze, "split": COUNT_SPLIT, "tag": trunk_tag(state),
              "state_dict": state,
              "count_head": {"config": asdict(head.cfg), "state_dict": head_state},
              **({"centre_head": {"labels": list(labels), "state_dict": centre_state}}
@@ -344,10 +336,9 @@ def train_trunk(data_root: str, render_root: str, out: str, *, extra: Optional[l
                        "val_objects": len(val), "head_continued": head_start is not None,
                        "chosen": rec, "history": history,
                        "minutes": round((time.time() - t0) / 60, 2)}}
-    buf = io.BytesIO()
-    torch.save(trunk, buf)
-    from model.data.format import atomic_write_bytes
-    atomic_write_bytes(out_dir / "trunk.pt", buf.getvalue())
+    meta = CheckpointMeta(kind=TRUNK_KIND, data_version=",".join(train.versions), seed=tc.seed,
+                          command=command, step=int(rec["step"]), train_config=asdict(tc))
+    write_checkpoint(out_dir / "trunk.pt", meta, trunk)
     (out_dir / "trunk_history.json").write_text(json.dumps(trunk["train"], indent=1))
     log.info("trunk: chose step %d (val exact %.4f); wrote %s", rec["step"], rec["val_exact"],
              out_dir / "trunk.pt")
