@@ -60,6 +60,7 @@ class DecodedTree:
     source_index: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     log_prob: float = 0.0
     plan_logits: Optional[np.ndarray] = None
+    hinges: Optional[list] = None      # per node: the hinge side a structure asked for, or None
 
     @property
     def num_nodes(self) -> int:
@@ -88,6 +89,111 @@ class DecodedTree:
 
 
 PLAN_ADD_MARGIN = 3.0   # follow_plan adds a child the END head gave p > sigmoid(-3) ~ 5 %
+LABEL_TAU = 0.1         # the label head's softmax scale: training's label cross-entropy reads
+                        # -mean((c_s - c_s(label))^2) / 0.1 as logits (network.losses)
+
+# What the training data's generator builds (docs/data.md, "The generator"), per category and
+# part label: the labels a part can be attached to, its joint types, the most parts of the
+# label one object has, and (doors) the hinge sides a structure may ask for. Structure control
+# (decode(structure=...)) holds decoding to it; checked against model.data.synth by
+# test/test_structure_control.py.
+_BODY = ("body",)
+STRUCTURE_GRAMMAR: dict[str, dict[str, tuple]] = {
+    "StorageFurniture": {"body": ((), ("fixed",), 1),
+                         "door": (_BODY, ("revolute",), 18),
+                         "drawer": (_BODY, ("prismatic",), 20),
+                         "handle": (("door", "drawer"), ("fixed",), 40)},
+    "Safe": {"body": ((), ("fixed",), 1),
+             "door": (_BODY, ("revolute",), 2),
+             "button": (("door",), ("prismatic",), 24),
+             "dial": (("door",), ("continuous",), 2),
+             "handle": (("door",), ("fixed", "revolute"), 2)},
+    "Oven": {"body": ((), ("fixed",), 1),
+             "door": (_BODY, ("revolute",), 1),
+             "drawer": (_BODY, ("prismatic",), 1),
+             "knob": (_BODY, ("revolute", "continuous"), 6),
+             "button": (_BODY, ("prismatic",), 3),
+             "tray": (_BODY, ("prismatic",), 2),
+             "handle": (("door", "drawer"), ("fixed",), 2)},
+    "WashingMachine": {"body": ((), ("fixed",), 1),
+                       "door": (_BODY, ("revolute",), 1),
+                       "lid": (_BODY, ("revolute",), 1),
+                       "drawer": (_BODY, ("prismatic",), 1),
+                       "dial": (_BODY, ("continuous",), 2),
+                       "button": (_BODY, ("prismatic",), 5),
+                       "handle": (("door", "drawer", "lid"), ("fixed",), 3)},
+    "Bottle": {"body": ((), ("fixed",), 1),
+               "cap": (_BODY, ("screw",), 1),
+               "lid": (_BODY, ("revolute",), 1)},
+    "USB": {"body": ((), ("fixed",), 1),
+            "cap": (_BODY, ("revolute", "prismatic"), 1)},
+}
+# labels one object never has together (a bottle has a screw cap or a flip lid; a washing
+# machine is a front loader with a door and maybe a drawer, or a top loader with a lid)
+STRUCTURE_EXCLUSIVE = {"Bottle": [("cap", "lid")],
+                       "WashingMachine": [("door", "lid"), ("drawer", "lid")]}
+HINGED_LABELS = ("door",)   # labels a structure may give hinge sides
+
+
+@dataclass
+class StructurePlan:
+    """A structure checked against the model (``ArticulationModel.resolve_structure``):
+    ``categories`` the object may be (decoding picks among them by the root's c_s);
+    ``counts`` label -> exact count (labels not in it and not in ``auto`` are not produced);
+    ``auto`` labels whose count the model decides; ``joints`` label -> joint type;
+    ``hinges`` label -> hinge side per part (in decoding order)."""
+    categories: list[str]
+    counts: dict[str, int]
+    auto: frozenset
+    joints: dict[str, str]
+    hinges: dict[str, tuple]
+
+    def allowed(self, label: str) -> bool:
+        return label in self.auto or self.counts.get(label, 0) > 0
+
+
+def hinge_side(token: np.ndarray) -> Optional[str]:
+    """The hinge edge of a revolute part's token (object frame: x front, y left, z up) as
+    seen from the front: left / right (vertical axis, origin on the part's -y / +y half),
+    top / bottom (horizontal axis, origin above / below the part's centre); None for an axis
+    along x (a knob)."""
+    c, o, a = token[3:6], token[6:9], np.abs(token[9:12])
+    if a[2] >= a[1] and a[2] >= a[0]:
+        return "left" if o[1] < c[1] else "right"
+    if a[1] >= a[0]:
+        return "bottom" if o[2] < c[2] else "top"
+    return None
+
+
+def set_hinge(token: np.ndarray, side: str) -> np.ndarray:
+    """A copy of a revolute part's token whose joint is hinged on ``side`` of the part's box
+    and opens towards the front (+x), as the training data's doors do. The predicted joint is
+    kept when it already is on that side, mirrored through the box centre when it is on the
+    opposite edge (left <-> right, top <-> bottom), and rebuilt on that edge of the box at the
+    predicted origin's depth otherwise; the joint limits stay the predicted ones."""
+    tok = np.array(token, dtype=np.float64)
+    have = hinge_side(tok)
+    if have == side:
+        return tok
+    c, s = tok[3:6], tok[0:3]
+    opposite = {"left": "right", "right": "left", "top": "bottom", "bottom": "top"}
+    if have == opposite[side]:
+        k = 1 if side in ("left", "right") else 2
+        tok[6 + k] = 2 * c[k] - tok[6 + k]
+        m = np.ones(3)
+        m[k] = -1
+        tok[9:12] = -m * tok[9:12]          # an axis is a pseudovector under reflection
+        return tok
+    x = tok[6]
+    if side == "left":
+        tok[6:9], tok[9:12] = (x, c[1] - s[1] / 2, c[2]), (0.0, 0.0, -1.0)
+    elif side == "right":
+        tok[6:9], tok[9:12] = (x, c[1] + s[1] / 2, c[2]), (0.0, 0.0, 1.0)
+    elif side == "bottom":
+        tok[6:9], tok[9:12] = (x, c[1], c[2] - s[2] / 2), (0.0, 1.0, 0.0)
+    else:
+        tok[6:9], tok[9:12] = (x, c[1], c[2] + s[2] / 2), (0.0, -1.0, 0.0)
+    return tok
 
 
 class ArticulationModel:
@@ -144,13 +250,118 @@ class ArticulationModel:
         raise ValueError(f"part label {label!r} is not known to this model; known labels: "
                          f"{sorted(set(self.table_labels))}")
 
+    # -- structure control ----------------------------------------------------------------------
+    def resolve_structure(self, spec, *, max_nodes: int = 32,
+                          max_children: int = 16) -> StructurePlan:
+        """A structure (``model.pipeline.api.parse_structure`` form: dict, JSON text or
+        StructureSpec) -> StructurePlan, or ValueError saying why this model cannot produce it
+        (unknown label or category, a label the category does not have, a count above what
+        the training data had or the node caps allow, a joint type or hinge the label does
+        not take, labels that exclude each other, a part with nothing to attach to).
+
+        Labels the structure does not name are not produced, except ``handle`` (attached to
+        doors / drawers / lids), whose count the model decides unless the structure names it.
+        """
+        from model.pipeline.api import GenerationError, parse_structure
+        try:
+            spec = parse_structure(spec)
+        except GenerationError as e:
+            raise ValueError(str(e)) from None
+        known = set(self.table_labels)
+        unknown = sorted(set(spec.parts) - known)
+        if unknown:
+            raise ValueError(f"structure: unknown part label(s) {unknown}; this model knows "
+                             f"{sorted(known)}")
+        cats = sorted(set(self.table_categories) & set(STRUCTURE_GRAMMAR))
+        if spec.category is not None:
+            match = [c for c in cats if c.lower() == spec.category.lower()]
+            if not match:
+                raise ValueError(f"structure: unknown category {spec.category!r}; this model "
+                                 f"knows {cats}")
+            cats = match
+        plans, why = [], {}
+        for cat in cats:
+            try:
+                plans.append(self._plan_for(cat, spec, max_nodes, max_children))
+            except ValueError as e:
+                why[cat] = str(e)
+        if not plans:
+            if len(why) == 1:
+                raise ValueError(f"structure: {next(iter(why.values()))}")
+            reasons = "; ".join(f"{c}: {m}" for c, m in why.items())
+            raise ValueError(f"structure: no category of this model can have these parts ({reasons})")
+        first = plans[0]
+        return StructurePlan(categories=[c for c in cats if c not in why], counts=first.counts,
+                             auto=first.auto, joints=first.joints, hinges=first.hinges)
+
+    def _plan_for(self, cat: str, spec, max_nodes: int, max_children: int) -> StructurePlan:
+        """Check a parsed structure against one category (ValueError says why not)."""
+        grammar = STRUCTURE_GRAMMAR[cat]
+        have = {lab for c, lab in zip(self.table_categories, self.table_labels) if c == cat}
+        counts: dict[str, int] = {"body": 1}
+        auto, joints, hinges = set(), {}, {}
+        cap = int(self.cfg.plan_max_count or 20)
+        for lab, req in spec.parts.items():
+            if lab not in grammar or lab not in have:
+                if req.count == 0:
+                    continue
+                raise ValueError(f"a {cat} has no {lab!r} parts (it has "
+                                 f"{sorted(set(grammar) & have)})")
+            hosts, jts, most = grammar[lab]
+            if lab == "body":
+                if req.count not in (None, 1) or (req.joint not in (None, "fixed")) or req.hinge:
+                    raise ValueError("the body is the one fixed root part: body must be 1 "
+                                     "(fixed, no hinge)")
+                continue
+            if req.count is None:
+                auto.add(lab)
+            else:
+                most = min(most, cap)
+                if req.count > most:
+                    raise ValueError(f"{req.count} {lab} parts: at most {most} per {cat} are "
+                                     f"supported (the training data's range)")
+                counts[lab] = req.count
+            if req.hinge:
+                if lab not in HINGED_LABELS:
+                    raise ValueError(f"hinge sides are supported for {list(HINGED_LABELS)}, "
+                                     f"not {lab!r}")
+                hinges[lab] = tuple(req.hinge)
+            if req.joint is not None:
+                if req.joint not in jts:
+                    raise ValueError(f"a {cat} {lab} moves with a {' or '.join(jts)} joint, not "
+                                     f"{req.joint}")
+                joints[lab] = req.joint
+        if "handle" in grammar and "handle" in have and "handle" not in spec.parts:
+            auto.add("handle")          # handles come with their doors / drawers by default
+        for a, b in STRUCTURE_EXCLUSIVE.get(cat, []):
+            if counts.get(a, 0) > 0 and counts.get(b, 0) > 0:
+                raise ValueError(f"a {cat} has either {a} or {b} parts, not both")
+        for lab, n in counts.items():
+            hosts = grammar[lab][0]
+            if n > 0 and hosts and not any(counts.get(h, 0) > 0 for h in hosts):
+                raise ValueError(f"{lab} parts attach to a {' or '.join(hosts)}; ask for at "
+                                 f"least one with an exact count")
+            only_body = hosts == _BODY
+            if only_body and n > max_children:
+                raise ValueError(f"{n} {lab} parts on the body: at most max_children="
+                                 f"{max_children} children per part")
+        on_body = sum(n for lab, n in counts.items() if grammar[lab][0] == _BODY)
+        if on_body > max_children:
+            raise ValueError(f"{on_body} parts on the body: at most max_children={max_children} "
+                             f"children per part")
+        total = sum(counts.values())
+        if total > max_nodes:
+            raise ValueError(f"{total} parts (body included): at most max_nodes={max_nodes}")
+        return StructurePlan([cat], counts, frozenset(auto), joints, hinges)
+
     # -- decoding -----------------------------------------------------------------------------
     @torch.inference_mode()
     def decode(self, cond_tokens: torch.Tensor, cond_mask: torch.Tensor, *, seed: int = 0,
                max_nodes: int = 32, max_depth: int = 4, max_children: int = 16,
                temperature: float = 1.0, modality: str = "text",
                keep: Union[ArticulatedObject, DecodedTree, None] = None,
-               follow_plan: bool = False, plan=None) -> list[DecodedTree]:
+               follow_plan: bool = False, plan=None,
+               structure=None) -> list[DecodedTree]:
         """cond_tokens (S, L, D_cond), cond_mask (S, L) -> S decoded trees.
 
         ``temperature`` scales the END logits and the joint-type logits before sampling
@@ -168,13 +379,34 @@ class ArticulationModel:
         ``plan`` (S, len(count_labels)) integer counts from elsewhere (the image count head,
         model.imaging.counts) replaces the START plan head's and is always followed; a
         negative count leaves that label's END decisions to the network.
+
+        ``structure`` (a dict / JSON text / StructureSpec, or a StructurePlan from
+        ``resolve_structure``) constrains every row to exactly those parts: the root is the
+        body of an allowed category, a node only gets children of labels it can carry that
+        the structure still lacks (or leaves to the model), a node that the END head stops
+        keeps growing only while no other part could carry a missing label, labels are drawn
+        from the label head's distribution over the allowed labels, joint types from the
+        joint-type head over the joint types the label takes (or the asked one), and an asked
+        hinge side is set on the predicted joint (``set_hinge``) before the node is fed back.
+        Replaces ``plan`` / ``follow_plan``; not combined with ``keep``.
         """
         if max_nodes < 1 or max_depth < 0 or max_children < 0:
             raise ValueError("max_nodes must be >= 1, max_depth and max_children >= 0")
         S = cond_tokens.shape[0]
         cond_tokens = cond_tokens.float()
+        if structure is not None:
+            if keep is not None:
+                raise ValueError("structure control does not combine with editing (keep)")
+            if not isinstance(structure, StructurePlan):
+                structure = self.resolve_structure(structure, max_nodes=max_nodes,
+                                                   max_children=max_children)
+            follow_plan, plan = False, None
         gens = [torch.Generator().manual_seed(int(seed) + i) for i in range(S)]
         rows = [self._initial_row(keep, max_nodes) for _ in range(S)]
+        if structure is not None:
+            for r in rows:
+                r["struct"] = {"plan": structure, "cat": None, "names": [],
+                               "need": dict(structure.counts), "hinge_i": {}, "sides": []}
         if plan is not None:
             plan = torch.as_tensor(plan, dtype=torch.long)
             want = (S, len(self.cfg.count_labels or []))
@@ -196,9 +428,19 @@ class ArticulationModel:
                     rows[i]["plan_logits"] = out["plan"][b].float().numpy().copy()
                 if follow_plan and "plan" in out and rows[i].get("plan") is None:
                     rows[i]["plan"] = out["plan"][b].argmax(-1).tolist()   # (labels,)
-                self._grow(rows[i], {k: v[b] for k, v in out.items()}, gens[i],
-                           max_nodes, max_depth, max_children, temperature)
-        return [self._finish(r) for r in rows]
+                grow = self._grow_structured if structure is not None else self._grow
+                grow(rows[i], {k: v[b] for k, v in out.items()}, gens[i],
+                     max_nodes, max_depth, max_children, temperature)
+        trees = [self._finish(r) for r in rows]
+        if structure is not None:
+            for i, (r, tree) in enumerate(zip(rows, trees)):
+                short = {k: v for k, v in r["struct"]["need"].items() if v}
+                if short:   # resolve_structure's checks should make this unreachable
+                    raise RuntimeError(f"row {i}: decoding ended {short} parts short of the "
+                                       f"structure")
+                tree.category = r["struct"]["cat"]
+                tree.hinges = r["struct"]["sides"]
+        return trees
 
     def _initial_row(self, keep, max_nodes: int) -> dict:
         row = {"tok": [], "jt": [], "cs": [], "cs_raw": [], "geo": [], "par": [], "depth": [],
@@ -324,6 +566,124 @@ class ArticulationModel:
             row["done"].append(False)
             row["kept"].append(False)
             row["src"].append(-1)
+
+    def _sample_label(self, cs_raw: torch.Tensor, cat: Optional[str], labels: list[str],
+                      gen: torch.Generator, temperature: float,
+                      categories: Optional[list[str]] = None) -> int:
+        """Index into the label table of the label drawn for a predicted c_s (normalised)
+        among ``labels`` of category ``cat`` (or the ``categories``' entries): the label
+        head's softmax over -distance / LABEL_TAU, tempered (0 = the nearest)."""
+        cats = [cat] if cat is not None else list(categories or [])
+        idx = [i for i, (c, lab) in enumerate(zip(self.table_categories, self.table_labels))
+               if c in cats and lab in labels]
+        d2 = ((self.table_cs_n[idx] - cs_raw) ** 2).mean(-1)                  # (n,)
+        if temperature > 0:
+            probs = torch.softmax(-d2 / (LABEL_TAU * temperature), -1)
+            return idx[int(torch.multinomial(probs, 1, generator=gen))]
+        return idx[int(d2.argmin())]
+
+    def _grow_structured(self, row: dict, out: dict, gen: torch.Generator, max_nodes: int,
+                         max_depth: int, max_children: int, temperature: float) -> None:
+        """_grow held to a StructurePlan (see ``decode``'s ``structure``)."""
+        st = row["struct"]
+        sp: StructurePlan = st["plan"]
+        names, need = st["names"], st["need"]
+        n_tokens = len(row["done"])
+
+        def host_ok(u: int) -> bool:      # token u can still take a child
+            d = 0 if u == 0 else row["depth"][u - 1] + 1
+            return d <= max_depth and (u == 0 or row["nkids"][u] < max_children)
+
+        def hosts(lab: str) -> tuple:
+            return STRUCTURE_GRAMMAR[st["cat"]][lab][0]
+
+        def deferrable(t: int, lab: str) -> bool:
+            """Another part (or one still to be made) can carry the missing ``lab``."""
+            if any(need.get(h, 0) > 0 for h in hosts(lab)):
+                return True
+            return any(u != t and not row["done"][u] and names[u - 1] in hosts(lab)
+                       and host_ok(u) for u in range(1, len(row["done"])))
+
+        for t in range(n_tokens):
+            if row["done"][t]:
+                continue
+            cs_raw = out["cs"][t].float()
+            if t == 0:
+                if row["tok"]:
+                    row["done"][0] = True
+                    continue
+                li = self._sample_label(cs_raw, None, ["body"], gen, temperature, sp.categories)
+                st["cat"] = self.table_categories[li]
+                self._add_node(row, out, t, li, int(JointType.FIXED), 0, names, need)
+                st["sides"].append(None)
+                continue
+            parent = names[t - 1]
+            free = len(row["tok"]) + sum(need.values()) < max_nodes   # room for an auto part
+            can = [lab for lab in STRUCTURE_GRAMMAR[st["cat"]]
+                   if parent in hosts(lab) and (need.get(lab, 0) > 0 or (lab in sp.auto and free))]
+            missing = [lab for lab in can if need.get(lab, 0) > 0]
+            if not can or not host_ok(t) or len(row["tok"]) >= max_nodes:
+                row["done"][t] = True
+                continue
+            logit = out["end"][t]
+            if temperature > 0:
+                wants = bool(torch.rand((), generator=gen) < torch.sigmoid(logit / temperature))
+            else:
+                wants = bool(logit > 0)
+            forced = [lab for lab in missing if not deferrable(t, lab)]
+            if not forced:
+                row["logp"] += float(F.logsigmoid(logit if wants else -logit))
+            if not wants and not forced:
+                row["done"][t] = True
+                continue
+            li = self._sample_label(cs_raw, st["cat"], forced or can, gen, temperature)
+            lab = self.table_labels[li]
+            allowed = [int(JointType.parse(j)) for j in
+                       ([sp.joints[lab]] if lab in sp.joints
+                        else STRUCTURE_GRAMMAR[st["cat"]][lab][1])]
+            logits = out["jt"][t].float()
+            if len(allowed) == 1:
+                jt = allowed[0]
+            else:
+                masked = torch.full_like(logits, float("-inf"))
+                masked[allowed] = logits[allowed]
+                if temperature > 0:
+                    jt = int(torch.multinomial(torch.softmax(masked / temperature, -1), 1,
+                                               generator=gen))
+                else:
+                    jt = int(masked.argmax())
+                row["logp"] += float(torch.log_softmax(logits, -1)[jt])
+            self._add_node(row, out, t, li, jt, row["depth"][t - 1] + 1, names, need)
+            st["sides"].append(None)
+            if lab in sp.hinges:
+                k = st["hinge_i"].get(lab, 0)
+                st["hinge_i"][lab] = k + 1
+                st["sides"][-1] = sp.hinges[lab][k]
+                tok = row["tok"][-1] * self.tok_std + self.tok_mean
+                tok = set_hinge(tok.double().numpy(), sp.hinges[lab][k])
+                row["tok"][-1] = (torch.as_tensor(tok, dtype=torch.float32)
+                                  - self.tok_mean) / self.tok_std
+
+    def _add_node(self, row: dict, out: dict, t: int, li: int, jt: int, depth: int,
+                  names: list, need: dict) -> None:
+        """Append the child predicted at token t with label-table entry li (structure path)."""
+        lab = self.table_labels[li]
+        names.append(lab)
+        if need.get(lab, 0) > 0:
+            need[lab] -= 1
+        row["lab"].append(self._count_index.get(lab, -1))
+        row["tok"].append(out["art"][t].float().clone())
+        row["jt"].append(jt)
+        row["cs"].append(self.table_cs_n[li])
+        row["cs_raw"].append(out["cs"][t].float().clone())
+        row["geo"].append(out["geo"][t].float().clone())
+        row["par"].append(t - 1)
+        row["depth"].append(depth)
+        row["nkids"][t] += 1
+        row["nkids"].append(0)
+        row["done"].append(False)
+        row["kept"].append(False)
+        row["src"].append(-1)
 
     def _finish(self, row: dict) -> DecodedTree:
         K = len(row["tok"])

@@ -86,6 +86,10 @@ def _generate(argv: list[str]) -> int:
                                 description="Text (or an image) -> articulated object: URDF + meshes.")
     p.add_argument("text", nargs="?", help="description of the object")
     p.add_argument("--image", help="an image file instead of a text")
+    p.add_argument("--structure", metavar="JSON",
+                   help="force the parts, e.g. '{\"drawer\": 3, \"door\": {\"count\": 1, "
+                        "\"hinge\": \"left\"}}' (labels, counts, joint types, hinge sides; "
+                        "docs/articulation.md)")
     p.add_argument("--out", required=True, help="output folder (sample_<i>/ inside when --samples > 1)")
     b = p.add_argument_group("batch (model/pipeline/batch.py)")
     b.add_argument("--prompts", metavar="FILE",
@@ -104,14 +108,21 @@ def _generate(argv: list[str]) -> int:
     if a.prompts is not None:
         if a.text is not None or a.image is not None:
             p.error("--prompts replaces TEXT / --image; give one of them")
+        if a.structure is not None:
+            p.error("--structure applies to one TEXT or --image, not to --prompts")
         return _batch(a)
     if (a.text is None) == (a.image is None):
         p.error("give a TEXT or --image (exactly one)")
     from model.pipeline.api import GenerationError
     from model.pipeline.generator import Generator
     try:
+        structure = None
+        if a.structure is not None:
+            from model.pipeline.api import parse_structure
+            structure = parse_structure(a.structure)    # bad JSON fails before the model loads
         gen = Generator.load(_config(a))
-        results = gen.generate(a.text, image=a.image, seed=a.seed, samples=a.samples)
+        results = gen.generate(a.text, image=a.image, seed=a.seed, samples=a.samples,
+                               structure=structure)
         outs = []
         for i, r in enumerate(results):
             d = Path(a.out) if len(results) == 1 else Path(a.out) / f"sample_{i}"

@@ -160,19 +160,59 @@ class Generator:
 
     # -- generation -------------------------------------------------------------------------
     def generate(self, text: Optional[str] = None, *, image=None, seed: int = 0, samples: int = 1,
-                 keep: Optional[ArticulatedObject] = None) -> list[GeneratedObject]:
+                 keep: Optional[ArticulatedObject] = None,
+                 structure=None) -> list[GeneratedObject]:
         """Generate ``samples`` objects for a text or an image (not both).
 
         Sample i uses seed ``seed + i`` everywhere, so the same seed gives the same object.
         ``keep`` (editing): the decoded trees start from this object's parts, which keep their
-        meshes; only new parts get geometry.
+        meshes; only new parts get geometry. ``structure`` (a dict or its JSON text, see
+        ``model.pipeline.api.parse_structure`` and docs/articulation.md): the parts every
+        sample must have, forced during decoding; GenerationError before any decoding when
+        the model cannot produce it.
         """
         import torch
+
+        from model.pipeline.api import parse_structure
+
+        spec = None if structure is None else parse_structure(structure)
+        seed = int(seed)
+        trees, prompt, modality, timings = self.decode_trees(text, image=image, seed=seed,
+                                                             samples=samples, keep=keep,
+                                                             structure=spec)
+
+        results = []
+        for i, tree in enumerate(trees):
+            tim = dict(timings)
+            gen = torch.Generator().manual_seed(seed + i)
+            obj = self._geometry(tree, gen, tim, keep)
+            obj.name = _object_name(obj.category, seed + i)
+            obj.metadata.update(prompt=prompt, seed=seed + i, modality=modality)
+            if spec is not None:
+                obj.metadata["structure"] = spec.to_dict()
+            results.append(GeneratedObject(obj=obj, prompt=prompt, seed=seed + i, timings=tim))
+        return results
+
+    def decode_trees(self, text: Optional[str] = None, *, image=None, seed: int = 0,
+                     samples: int = 1, keep: Optional[ArticulatedObject] = None,
+                     structure=None) -> tuple[list, str, str, dict]:
+        """The first stages of :meth:`generate` alone: condition -> decoded part trees
+        (``model.articulation.DecodedTree``: labels, joint types, boxes; no shapes, no
+        meshes). Returns (trees, prompt, modality, timings); the same seed gives the trees
+        that :meth:`generate` meshes."""
+        import torch
+
+        from model.pipeline.api import parse_structure
 
         if (text is None) == (image is None):
             raise GenerationError("give a text or an image (exactly one)")
         if not 1 <= int(samples) <= 16:
             raise GenerationError(f"samples must be between 1 and 16, got {samples}")
+        spec = splan = None
+        if structure is not None:
+            if keep is not None:
+                raise GenerationError("structure cannot be combined with editing (keep)")
+            spec = parse_structure(structure)
         seed = int(seed)
         cfg = self.config
         timings: dict[str, float] = {}
@@ -194,6 +234,12 @@ class Generator:
             prompt = image if isinstance(image, str) else "<image>"
             modality, decoder = "image", self.image_model.am
             timings["image_encoding"] = time.perf_counter() - t
+        if structure is not None:
+            try:
+                splan = decoder.resolve_structure(spec, max_nodes=cfg.max_nodes,
+                                                  max_children=cfg.max_children)
+            except ValueError as e:
+                raise GenerationError(str(e)) from None
 
         t = time.perf_counter()
         S = int(samples)
@@ -208,18 +254,9 @@ class Generator:
                                    max_children=cfg.max_children, modality=modality, keep=keep,
                                    temperature=cfg.structure_temperature,
                                    follow_plan=modality == "text" and "text" in cfg.follow_plan,
-                                   plan=plan)
+                                   plan=plan, structure=splan)
         timings["decoding"] = (time.perf_counter() - t) / S
-
-        results = []
-        for i, tree in enumerate(trees):
-            tim = dict(timings)
-            gen = torch.Generator().manual_seed(seed + i)
-            obj = self._geometry(tree, gen, tim, keep)
-            obj.name = _object_name(obj.category, seed + i)
-            obj.metadata.update(prompt=prompt, seed=seed + i, modality=modality)
-            results.append(GeneratedObject(obj=obj, prompt=prompt, seed=seed + i, timings=tim))
-        return results
+        return trees, prompt, modality, timings
 
     def _geometry(self, tree, gen, timings: dict, keep: Optional[ArticulatedObject]) -> ArticulatedObject:
         """Latents for every new part in one batch, meshes fitted to the predicted boxes."""
@@ -236,6 +273,7 @@ class Generator:
             from model.refine import refine_layout
             t = time.perf_counter()
             refined["layout"] = refine_layout(obj)
+            _keep_hinge_sides(obj, tree.hinges)
             refine_s += time.perf_counter() - t
         new = [k for k in range(tree.num_nodes) if not (len(tree.kept) and tree.kept[k])]
         texts = [label_text(tree.category, tree.labels[k]) for k in new]
@@ -334,6 +372,20 @@ class Generator:
         exported.preview_path = path
         result.timings["preview"] = time.perf_counter() - t
         return path
+
+
+def _keep_hinge_sides(obj: ArticulatedObject, sides: Optional[list]) -> None:
+    """Hinge sides a structure asked for (DecodedTree.hinges), kept through layout refinement:
+    refinement puts a hinge on the box edge nearest the predicted origin, and a box it moves
+    past that origin would swap the side; such a joint is mirrored back (set_hinge)."""
+    if not sides:
+        return
+    from model.articulation.decode import hinge_side, set_hinge
+    for part, side in zip(obj.parts, sides):
+        if side is None or hinge_side(part.token()) == side:
+            continue
+        tok = set_hinge(part.token(), side)
+        part.joint.origin, part.joint.axis = tok[6:9].copy(), tok[9:12].copy()
 
 
 def _collision_boxes(r, fitted, max_boxes: int = 32, min_coverage: float = 0.0,
