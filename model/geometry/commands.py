@@ -61,34 +61,84 @@ def _load_shape(a, need_prior: bool):
 
 def _eval(argv: list[str]) -> int:
     p = argparse.ArgumentParser(prog="artformer eval geometry",
-                                description="reconstruction IoU / Chamfer on held-out parts; "
-                                            "prior sample yield and diversity")
+                                description="per-label quality of the shape prior on held-out "
+                                            "parts: F-score@1 %, Chamfer (mm), volume IoU, "
+                                            "connected components and floaters of the "
+                                            "auto-encoder's reconstructions and of prior samples")
     p.add_argument("--data", required=True)
     p.add_argument("--sdf", help="auto-encoder checkpoint (default: shipped)")
     p.add_argument("--prior", help="prior checkpoint (default: shipped)")
     p.add_argument("--split", default="test")
-    p.add_argument("--max-parts", type=int, default=300, help="0 = all")
+    p.add_argument("--max-parts", "--limit", type=int, default=300, dest="max_parts",
+                   help="at most this many held-out parts (0 = all)")
+    p.add_argument("--per-label", type=int, default=0,
+                   help="at most this many parts per part label (0 = no cap)")
     p.add_argument("--resolution", type=int, default=64)
-    p.add_argument("--labels", type=int, default=12, help="label texts for prior samples")
+    p.add_argument("--labels", type=int, default=0,
+                   help="prior: the N most frequent label texts (0 = every text in the selection)")
     p.add_argument("--samples-per-label", type=int, default=8, help="0 = skip the prior")
     p.add_argument("--steps", type=int, default=50)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--threads", type=int, default=2)
     p.add_argument("--json", help="also write the results here")
+    p.add_argument("--figures", metavar="DIR",
+                   help="write geometry_worst_reconstructions.png and geometry_prior_samples.png "
+                        "here")
+    p.add_argument("--worst", type=int, default=12, help="reconstructions on the worst sheet")
+    p.add_argument("--diagnose", action="store_true",
+                   help="instead: measure where thin walls are lost (resolution sweep, true SDF "
+                        "meshed, decoder error vs distance, box vs iso frame, retrieval, "
+                        "meshing remedies)")
     a = p.parse_args(argv[2:])
+    for name in ("max_parts", "per_label", "labels", "samples_per_label", "worst"):
+        if getattr(a, name) < 0:
+            raise ValueError(f"--{name.replace('_', '-')} must be >= 0")
+    if not 8 <= a.resolution <= 256:
+        raise ValueError(f"--resolution must be in [8, 256], got {a.resolution}")
     import torch
     torch.set_num_threads(a.threads)
-    from .evaluate import evaluate
+    from . import evaluate as ev
+    if a.diagnose:
+        shape = _load_shape(a, need_prior=True)
+        res = ev.diagnose(shape, a.data, split=a.split, per_label_cap=a.per_label or 6,
+                          max_parts=a.max_parts or None, seed=a.seed)
+        res["checkpoints"] = shape.info
+        text = json.dumps(res, indent=1)
+        print(text)
+        if a.json:
+            from model.data.format import atomic_write_bytes
+            atomic_write_bytes(a.json, text.encode())
+        return 0
     shape = _load_shape(a, need_prior=a.samples_per_label > 0)
-    res = evaluate(shape, a.data, split=a.split, max_parts=a.max_parts or None,
-                   resolution=a.resolution, labels=a.labels,
-                   samples_per_label=a.samples_per_label, steps=a.steps, seed=a.seed)
+    res = ev.evaluate(shape, a.data, split=a.split, max_parts=a.max_parts or None,
+                      per_label_cap=a.per_label or None, resolution=a.resolution,
+                      labels=a.labels or None, samples_per_label=a.samples_per_label,
+                      steps=a.steps, seed=a.seed, keep_rows=True)
+    rows = res.pop("rows")
     res["checkpoints"] = shape.info
-    text = json.dumps(res, indent=1)
-    print(text)
+    res["command"] = " ".join(["artformer", *argv])
+    if a.figures:
+        from pathlib import Path
+        fig = Path(a.figures)
+        fig.mkdir(parents=True, exist_ok=True)
+        if rows["reconstruction"] and a.worst:
+            ev.worst_sheet(fig / "geometry_worst_reconstructions.png", rows["reconstruction"],
+                           k=a.worst)
+        if rows["prior"]:
+            ev.samples_sheet(fig / "geometry_prior_samples.png", rows["prior"])
+        res["figures"] = str(fig)
+    res["parts_rows"] = {k: ev._json_rows(v) for k, v in rows.items()}
+    print(ev.format_table(res))
+    r, s = res["reconstruction"], res.get("prior", {})
+    print(f"reconstruction: {r['parts']} parts, F@1% {r.get('fscore', float('nan')):.3f}, "
+          f"true #components {r.get('true_components', float('nan')):.3f}, "
+          f"mesh {r['mesh_ms_median']:.0f} ms/part (median)")
+    if s:
+        print(f"prior: {s['samples']} samples, watertight {s.get('watertight', 0):.3f}, "
+              f"watertight without floaters {s['clean']:.3f}, diversity {s['diversity_mean']:.4f}")
     if a.json:
         from model.data.format import atomic_write_bytes
-        atomic_write_bytes(a.json, text.encode())
+        atomic_write_bytes(a.json, json.dumps(res, indent=1, default=float).encode())
     return 0
 
 

@@ -55,10 +55,11 @@ def _vertices(n: int, bound: float) -> torch.Tensor:
 
 @torch.inference_mode()
 def evaluate_grid(sdf_fn: SdfFn, batch: int, resolution: int = 64, *, bound: float = 1.0,
-                  band: float = 1.5, min_coarse: int = 16, chunk: int = 32_768
-                  ) -> tuple[torch.Tensor, torch.Tensor]:
+                  band: float = 1.5, min_coarse: int = 16, chunk: int = 32_768,
+                  level: float = 0.0) -> tuple[torch.Tensor, torch.Tensor]:
     """SDF values on the (resolution+1)^3 vertex grid of ``batch`` parts, coarse to fine.
 
+    ``level``: the iso-value that will be meshed (the refinement band is centred on it).
     Returns (values (B, n+1, n+1, n+1), evaluations per part (B,)).
     """
     levels = grid_levels(resolution, min_coarse)
@@ -77,7 +78,7 @@ def evaluate_grid(sdf_fn: SdfFn, batch: int, resolution: int = 64, *, bound: flo
             # cell diagonals of the surface; farther out only its sign matters, and the
             # interpolation has it right (measured on generated parts: band 1.5 gives the
             # same signs as evaluating all 65^3 vertices, band 1.0 misses 12 of 4.9 M).
-            mask = values.abs() < band * h * 3 ** 0.5
+            mask = (values - level).abs() < band * h * 3 ** 0.5
             ex = torch.zeros(batch, n + 1, n + 1, n + 1, dtype=torch.bool)
             ex[:, ::2, ::2, ::2] = exact
             mask &= ~ex
@@ -100,11 +101,16 @@ def evaluate_grid(sdf_fn: SdfFn, batch: int, resolution: int = 64, *, bound: flo
     return values, evals
 
 
-def marching_cubes(values: np.ndarray, bound: float = 1.0) -> MeshResult:
-    """One part's vertex grid (n+1)^3 over [-bound, bound]^3 -> closed mesh (or no surface)."""
+def marching_cubes(values: np.ndarray, bound: float = 1.0, level: float = 0.0) -> MeshResult:
+    """One part's vertex grid (n+1)^3 over [-bound, bound]^3 -> closed mesh (or no surface).
+
+    ``level`` > 0 meshes the surface ``level`` outside the decoded one (a dilation by that
+    distance in the part's frame)."""
     import trimesh
     from skimage import measure
     n = values.shape[0] - 1
+    if level:
+        values = values - level
     if values.min() > 0:
         return MeshResult(trimesh.Trimesh(), "empty", 0)
     if values.max() < 0:
@@ -123,14 +129,15 @@ def marching_cubes(values: np.ndarray, bound: float = 1.0) -> MeshResult:
 
 
 def mesh_sdf_batch(sdf_fn: SdfFn, batch: int, resolution: int = 64, *, bound: float = 1.0,
-                   band: float = 1.5, min_coarse: int = 16) -> list[MeshResult]:
+                   band: float = 1.5, min_coarse: int = 16, level: float = 0.0
+                   ) -> list[MeshResult]:
     """Mesh ``batch`` SDFs at once (one batched network call per level)."""
     values, evals = evaluate_grid(sdf_fn, batch, resolution, bound=bound, band=band,
-                                  min_coarse=min_coarse)
-    inside = (values < 0).numpy()
+                                  min_coarse=min_coarse, level=level)
+    inside = (values < level).numpy()
     out = []
     for b in range(batch):
-        r = marching_cubes(values[b].numpy(), bound)
+        r = marching_cubes(values[b].numpy(), bound, level)
         r.evaluations = int(evals[b])
         r.inside = inside[b]
         r.bound = bound
@@ -152,3 +159,34 @@ def fit_to_bbox(mesh, center, size, min_size: float = 1e-4):
     center = np.asarray(center, dtype=np.float64).reshape(3)
     m.vertices = (np.asarray(m.vertices) - (lo + hi) / 2.0) * (size / ext) + center
     return m
+
+
+def components(mesh) -> tuple[int, np.ndarray]:
+    """Connected components of a mesh's faces (faces sharing a vertex are connected; marching
+    cubes shares vertices between faces). -> (count, component id per face)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    f = np.asarray(mesh.faces)
+    if len(f) == 0:
+        return 0, np.zeros(0, dtype=np.int64)
+    nv = len(mesh.vertices)
+    a = np.concatenate([f[:, 0], f[:, 1]])
+    b = np.concatenate([f[:, 1], f[:, 2]])
+    g = coo_matrix((np.ones(len(a), dtype=np.int8), (a, b)), shape=(nv, nv))
+    _, lab = connected_components(g, directed=False)
+    fl = lab[f[:, 0]]
+    uniq, inv = np.unique(fl, return_inverse=True)
+    return len(uniq), inv
+
+
+def keep_largest_components(mesh, k: int = 1):
+    """The ``k`` components with the largest surface area (a new mesh; unused vertices
+    dropped)."""
+    import trimesh
+    n, lab = components(mesh)
+    if n <= k:
+        return mesh.copy()
+    keep = np.argsort(-np.bincount(lab, weights=np.asarray(mesh.area_faces)))[:k]
+    faces = np.asarray(mesh.faces)[np.isin(lab, keep)]
+    used, inv = np.unique(faces, return_inverse=True)
+    return trimesh.Trimesh(np.asarray(mesh.vertices)[used], inv.reshape(-1, 3), process=False)
