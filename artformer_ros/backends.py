@@ -5,7 +5,9 @@
 * ``example`` — no model: every request exports the built-in example object of
   ``model.core.example`` (the bottle when the prompt mentions a bottle, else the cabinet).
   For plumbing demos and fast tests of the node only; it ignores seeds and images' contents,
-  and exports with one convex hull per part as collision and no preview (speed).
+  and exports with one convex hull per part as collision and no preview (speed). A request
+  with a ``structure`` gets the example object that has exactly those parts, or an error
+  naming what the two examples have.
 
 Heavy imports (torch, trimesh, the model) happen inside ``load_backend``, which the node runs
 on its loading thread, so the node is up and answering within a second.
@@ -32,10 +34,12 @@ class ModelBackend:
         self._settings = settings   # live: preview and mesh_uri are read per request
 
     def generate(self, *, text: Optional[str], image: Optional[np.ndarray], seed: int,
-                 samples: int) -> list:
+                 samples: int, structure: Optional[dict] = None) -> list:
         if image is not None:
-            return self.generator.generate(image=image, seed=seed, samples=samples)
-        return self.generator.generate(text=text, seed=seed, samples=samples)
+            return self.generator.generate(image=image, seed=seed, samples=samples,
+                                           structure=structure)
+        return self.generator.generate(text=text, seed=seed, samples=samples,
+                                       structure=structure)
 
     def export(self, result, out_dir: str):
         # the node draws preview.png after publishing (GenerationService._write_previews)
@@ -63,10 +67,20 @@ class ExampleBackend:
         return self._cache[key].copy()
 
     def generate(self, *, text: Optional[str], image: Optional[np.ndarray], seed: int,
-                 samples: int) -> list:
-        from model.pipeline.api import GeneratedObject
+                 samples: int, structure: Optional[dict] = None) -> list:
+        from model.core.example import structure_mismatch
+        from model.pipeline.api import GeneratedObject, GenerationError
 
         key = "bottle" if text and "bottle" in text.lower() else "cabinet"
+        if structure is not None:
+            why = {k: structure_mismatch(self._object(k), structure) for k in self._builders}
+            fits = [k for k in (key, *self._builders) if why[k] is None]
+            if not fits:
+                raise GenerationError(
+                    "the example backend (no model) only has its built-in objects and neither "
+                    "has this structure: " + "; ".join(f"the {k}: {m}" for k, m in why.items())
+                    + "; run the node with backend:=model for other structures")
+            key = fits[0]
         t0 = time.perf_counter()
         objs = [self._object(key) for _ in range(samples)]
         dt = time.perf_counter() - t0

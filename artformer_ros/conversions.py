@@ -28,7 +28,7 @@ IMAGE_ENCODINGS: dict[str, int] = {"rgb8": 3, "bgr8": 3, "rgba8": 4, "bgra8": 4,
 
 MAX_ID_LENGTH = 128
 SEED_MAX = 2**31 - 1
-_TEXT_KEYS = ("id", "text", "seed")
+_TEXT_KEYS = ("id", "text", "seed", "structure")
 
 
 class RequestError(ValueError):
@@ -45,6 +45,7 @@ class TextRequest:
     text: str
     seed: Optional[int]       # None = use the node's seed policy
     id_given: bool            # the client chose the id (JSON payload) vs. assigned by the node
+    structure: Optional[dict] = None   # parts to force (model.pipeline.api.parse_structure)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -102,8 +103,10 @@ def parse_text_request(payload: bytes | str, *, max_length: int, assigned_id: st
     """Validate one text request.
 
     ``payload`` is plain text (the id becomes ``assigned_id``) or a JSON object
-    ``{"text": str, "id": str|int (optional), "seed": int (optional)}``; a payload whose first
-    non-blank character is ``{`` must be such an object.
+    ``{"text": str, "id": str|int (optional), "seed": int (optional), "structure": object
+    (optional, docs/ros.md)}``; a payload whose first non-blank character is ``{`` must be such
+    an object. A structure's form is checked here; whether the model can produce it, by the
+    backend.
     """
     if isinstance(payload, (bytes, bytearray)):
         # Bound the work before decoding: a UTF-8 character is at most 4 bytes; JSON adds keys.
@@ -138,7 +141,15 @@ def parse_text_request(payload: bytes | str, *, max_length: int, assigned_id: st
     if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int)
                              or not 0 <= seed <= SEED_MAX):
         raise RequestError(f"'seed' must be an integer in [0, {SEED_MAX}]", rid)
-    return TextRequest(rid, _check_text(obj["text"], max_length, rid), seed, "id" in obj)
+    structure = obj.get("structure")
+    if structure is not None:
+        from model.pipeline.api import GenerationError, parse_structure
+        try:
+            structure = parse_structure(structure).to_dict()
+        except GenerationError as err:
+            raise RequestError(str(err), rid) from None
+    return TextRequest(rid, _check_text(obj["text"], max_length, rid), seed, "id" in obj,
+                       structure)
 
 
 def slug(text: str, max_length: int = 40) -> str:

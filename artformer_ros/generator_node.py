@@ -1,7 +1,8 @@
 """ROS 2 node ``artformer_generator``: text / image requests in, URDF + meshes out.
 
 Topics (relative names, remappable):
-  sub  text_request       std_msgs/String     plain text, or JSON {"text", "id"?, "seed"?}
+  sub  text_request       std_msgs/String     plain text, or JSON {"text", "id"?, "seed"?,
+                                               "structure"?}
   sub  image_request      sensor_msgs/Image   rgb8 | bgr8 | rgba8 | bgra8 | mono8;
                                               request id = header.frame_id (else image-<n>);
                                               best effort: matches camera drivers and
@@ -197,7 +198,8 @@ class GeneratorNode(Node):
             self._emit(answer(rid, "error", f"malformed message: {err}"), None)
             return
         self.get_logger().info(f"text request {req.request_id}: {req.text[:80]!r}")
-        self.service.submit(Job(req.request_id, "text", text=req.text, seed=req.seed))
+        self.service.submit(Job(req.request_id, "text", text=req.text, seed=req.seed,
+                                structure=req.structure))
 
     def _on_image(self, msg: Image) -> None:
         rid = msg.header.frame_id.strip()

@@ -58,6 +58,8 @@ class Backend(Protocol):
 
     def generate(self, *, text: Optional[str], image: Optional[np.ndarray], seed: int,
                  samples: int) -> list: ...
+    # a request with a ``structure`` calls generate(..., structure=dict); a backend that
+    # cannot honour one raises GenerationError (the request gets an error result)
 
     def export(self, result: Any, out_dir: str) -> Any: ...
 
@@ -69,6 +71,7 @@ class Job:
     text: Optional[str] = None             # the prompt of a text request
     image: Optional[np.ndarray] = None     # (H, W, 3) uint8 RGB of an image request
     seed: Optional[int] = None             # None: the node's seed policy
+    structure: Optional[dict] = None       # parts to force (docs/ros.md), form already checked
     received: float = field(default_factory=time.monotonic)
 
     @property
@@ -352,8 +355,9 @@ class GenerationService:
         seed, samples = self._seed_for(job), self.settings.samples
         base = {"seed": seed, "backend": self._backend.name}
         try:
+            extra = {} if job.structure is None else {"structure": job.structure}
             outs = self._backend.generate(text=job.text, image=job.image, seed=seed,
-                                          samples=samples)
+                                          samples=samples, **extra)
         except GenerationError as err:
             return answer(job, "error", f"generation failed: {err}", **base), None
         t_gen = time.monotonic()
@@ -435,6 +439,7 @@ class GenerationService:
         first = samples[0]
         return {"id": job.request_id, "status": "done", "kind": job.kind, "prompt": job.prompt,
                 "seed": seed, "backend": self._backend.name, "message": "ok",
+                **({"structure": job.structure} if job.structure is not None else {}),
                 "output_dir": folder, "urdf_path": first["urdf_path"],
                 "mesh_paths": first["mesh_paths"], "metadata_path": first["metadata_path"],
                 "preview_path": first["preview_path"],

@@ -371,3 +371,62 @@ def test_a_preview_yields_to_a_request_that_arrives_while_it_is_drawn(tmp_path):
                                 ("generate", "second"), ("preview", "first"),
                                 ("preview", "second")]
     assert h.svc.stop(1)
+
+
+# -- structure requests (docs/ros.md) --------------------------------------------------------------
+class StructureBackend(ScriptedBackend):
+    """A backend that takes structures: records them, refuses {"drawer": 99} as a model would."""
+
+    def generate(self, *, text, image, seed, samples, structure=None):
+        self.calls.append((text, seed, samples, structure))
+        if structure is not None and structure.get("drawer", {}).get("count") == 99:
+            raise GenerationError("structure: 99 drawer parts: at most 20 per StorageFurniture")
+        return [GeneratedObject(obj=None, prompt=text, seed=seed, timings={})]
+
+
+def test_json_structure_requests_reach_the_backend_and_bad_ones_get_error_results(tmp_path):
+    from artformer_ros.conversions import RequestError, parse_text_request
+    req = parse_text_request(json.dumps({"id": "s1", "text": "a cabinet",
+                                         "structure": {"drawer": 3, "door": {"hinge": "left"}}}),
+                             max_length=100, assigned_id="text-1")
+    assert req.structure == {"drawer": {"count": 3},
+                             "door": {"count": 1, "joint": "revolute", "hinge": ["left"]}}
+    assert parse_text_request("plain text", max_length=100, assigned_id="t").structure is None
+    for bad, words in ((["drawer"], "JSON object"), ('{"drawer": 3', "not valid JSON"),
+                       ({"drawer": -2}, ">= 0"), ({"door": {"hinge": "north"}}, "hinge side")):
+        with pytest.raises(RequestError, match=words) as err:
+            parse_text_request(json.dumps({"id": "s2", "text": "x", "structure": bad}),
+                               max_length=100, assigned_id="t")
+        assert err.value.request_id == "s2"
+
+    h = Harness(tmp_path, backend=StructureBackend())
+    h.svc.start()
+    assert h.svc.wait_ready(5)
+    h.svc.submit(Job("ok", "text", text="a cabinet", structure=req.structure))
+    h.svc.submit(Job("big", "text", text="a cabinet", structure={"drawer": {"count": 99}}))
+    h.svc.submit(Job("plain", "text", text="a cabinet"))
+    h.wait_answers(3)
+    ids = h.by_id()
+    assert ids["ok"][0]["status"] == "done" and ids["ok"][0]["structure"] == req.structure
+    assert ids["big"][0]["status"] == "error" and "at most 20" in ids["big"][0]["message"]
+    assert ids["plain"][0]["status"] == "done" and "structure" not in ids["plain"][0]
+    assert [c[3] for c in h.backend.calls] == [req.structure, {"drawer": {"count": 99}}, None]
+    h.svc.stop(1)
+
+
+def test_the_example_backend_honours_its_own_structures_and_refuses_others(tmp_path):
+    from artformer_ros.backends import ExampleBackend
+    from model.core.example import structure_mismatch
+    backend = ExampleBackend(NodeSettings(backend="example", output_dir=str(tmp_path)))
+    [cab] = backend.generate(text="a bottle", image=None, seed=0, samples=1,
+                             structure={"drawer": 2, "door": {"count": 1, "hinge": "right"}})
+    assert structure_mismatch(cab.obj, {"drawer": 2, "door": 1}) is None
+    assert cab.obj.category == "StorageFurniture"      # the structure wins over the prompt
+    [bottle] = backend.generate(text="a thing", image=None, seed=0, samples=1,
+                                structure={"cap": {"count": 1, "joint": "screw"}})
+    assert bottle.obj.category == "Bottle"
+    for bad, words in (({"drawer": 3}, "1 door part"),
+                       ({"drawer": 2, "door": {"count": 1, "hinge": "left"}}, "hinges are"),
+                       ({"cap": {"count": 1, "joint": "revolute"}}, "revolute joints")):
+        with pytest.raises(GenerationError, match="example backend.*" + words):
+            backend.generate(text="a cabinet", image=None, seed=0, samples=1, structure=bad)

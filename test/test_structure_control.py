@@ -73,7 +73,8 @@ def _door_token(side: str) -> np.ndarray:
     ("left", (0.3, -0.1, 0.5), (0, 0, -1)), ("right", (0.3, 0.3, 0.5), (0, 0, 1)),
     ("bottom", (0.3, 0.1, 0.2), (0, 1, 0)), ("top", (0.3, 0.1, 0.8), (0, -1, 0))])
 def test_set_hinge_builds_the_data_generators_joint_for_each_side(side, origin, axis):
-    from model.articulation.decode import hinge_side, set_hinge
+    from model.articulation.decode import set_hinge
+    from model.pipeline.api import hinge_side
     tok = _door_token(side)
     np.testing.assert_allclose(tok[6:9], origin, atol=1e-12)
     np.testing.assert_allclose(tok[9:12], axis, atol=1e-12)
@@ -213,7 +214,8 @@ STRUCTURES = (
 
 def _check(tree, structure, plan):
     """Labels, counts, joint types and hinge sides of a decoded tree against a structure."""
-    from model.articulation.decode import STRUCTURE_GRAMMAR, hinge_side
+    from model.articulation.decode import STRUCTURE_GRAMMAR
+    from model.pipeline.api import hinge_side
     spec = parse_structure(structure)
     counts = Counter(tree.labels)
     assert tree.category in plan.categories
@@ -272,8 +274,7 @@ def test_structure_is_honoured_greedy_and_at_temperature_one(am):
 def test_the_generator_forces_the_structure_and_refuses_before_decoding(tmp_path):
     """Generator.generate(structure=...) end to end (refinement on: the hinge side survives
     it), decode_trees for the tree alone, and a clear error for an impossible structure."""
-    from model.articulation.decode import hinge_side
-    from model.pipeline.api import GenerationConfig
+    from model.pipeline.api import GenerationConfig, hinge_side
     from model.pipeline.generator import Generator
     gen = Generator.load(GenerationConfig(resolution=16, steps=4, collision="none"))
     structure = {"drawer": 2, "door": {"count": 2, "hinge": ["left", "right"]}}

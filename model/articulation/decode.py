@@ -25,6 +25,7 @@ import torch
 from torch.nn import functional as F
 
 from model.core.objects import TOKEN_DIM, ArticulatedObject, JointType
+from model.pipeline.api import hinge_side
 
 from .checkpoint import build_network, read_checkpoint
 from .network import ArticulationTransformer, TreeBatch
@@ -150,19 +151,6 @@ class StructurePlan:
 
     def allowed(self, label: str) -> bool:
         return label in self.auto or self.counts.get(label, 0) > 0
-
-
-def hinge_side(token: np.ndarray) -> Optional[str]:
-    """The hinge edge of a revolute part's token (object frame: x front, y left, z up) as
-    seen from the front: left / right (vertical axis, origin on the part's -y / +y half),
-    top / bottom (horizontal axis, origin above / below the part's centre); None for an axis
-    along x (a knob)."""
-    c, o, a = token[3:6], token[6:9], np.abs(token[9:12])
-    if a[2] >= a[1] and a[2] >= a[0]:
-        return "left" if o[1] < c[1] else "right"
-    if a[1] >= a[0]:
-        return "bottom" if o[2] < c[2] else "top"
-    return None
 
 
 def set_hinge(token: np.ndarray, side: str) -> np.ndarray:

@@ -154,3 +154,31 @@ def example_bottle() -> ArticulatedObject:
 def example_objects() -> dict[str, ArticulatedObject]:
     """Name → freshly built example object."""
     return {"cabinet": example_cabinet(), "bottle": example_bottle()}
+
+
+def structure_mismatch(obj: ArticulatedObject, structure) -> str | None:
+    """Why a built example object does not have the parts a structure asks for (None: it has
+    them). ``structure`` is a dict / JSON text / ``model.pipeline.api.StructureSpec``; the
+    rules are those of structure control (docs/articulation.md): named labels with exact
+    counts, joint types and hinge sides; unnamed labels absent except handles."""
+    from model.pipeline.api import hinge_side, parse_structure
+
+    spec = parse_structure(structure)
+    if spec.category and spec.category.lower() != obj.category.lower():
+        return f"it is a {obj.category}, not a {spec.category}"
+    have: dict[str, list[Part]] = {}
+    for p in obj.parts:
+        have.setdefault(p.label, []).append(p)
+    for lab, parts in have.items():
+        if lab not in spec.parts and lab not in ("body", "handle"):
+            return f"it has {len(parts)} {lab} part(s) the structure does not ask for"
+    for lab, req in spec.parts.items():
+        parts = have.get(lab, [])
+        if req.count is not None and len(parts) != req.count:
+            return f"it has {len(parts)} {lab} part(s), not {req.count}"
+        if req.joint and any(p.joint.type.name.lower() != req.joint for p in parts):
+            return f"its {lab} parts do not have {req.joint} joints"
+        if req.hinge and [hinge_side(p.token()) for p in parts] != list(req.hinge):
+            return (f"its {lab} hinges are {[hinge_side(p.token()) for p in parts]}, not "
+                    f"{list(req.hinge)}")
+    return None

@@ -73,6 +73,21 @@ HINGE_SIDES = ("left", "right", "top", "bottom")   # the hinge edge as seen from
 AUTO = "auto"
 
 
+def hinge_side(token) -> Optional[str]:
+    """The hinge edge of a revolute part's token (object frame: x front, y left, z up) as
+    seen from the front: left / right (vertical axis, origin on the part's -y / +y half),
+    top / bottom (horizontal axis, origin above / below the part's centre); None for an axis
+    along x (a knob)."""
+    import numpy as np
+    token = np.asarray(token, dtype=np.float64)
+    c, o, a = token[3:6], token[6:9], np.abs(token[9:12])
+    if a[2] >= a[1] and a[2] >= a[0]:
+        return "left" if o[1] < c[1] else "right"
+    if a[1] >= a[0]:
+        return "bottom" if o[2] < c[2] else "top"
+    return None
+
+
 @dataclass(frozen=True)
 class PartRequest:
     """What a structure asks of one part label: ``count`` parts (None = the model decides,

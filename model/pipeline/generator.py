@@ -380,7 +380,8 @@ def _keep_hinge_sides(obj: ArticulatedObject, sides: Optional[list]) -> None:
     past that origin would swap the side; such a joint is mirrored back (set_hinge)."""
     if not sides:
         return
-    from model.articulation.decode import hinge_side, set_hinge
+    from model.articulation.decode import set_hinge
+    from model.pipeline.api import hinge_side
     for part, side in zip(obj.parts, sides):
         if side is None or hinge_side(part.token()) == side:
             continue
