@@ -11,10 +11,13 @@ __all__ = ["TOKEN_DIM", "ArticulatedObject", "Joint", "JointType", "ObjectValida
            "Part", "generate", "__version__"]
 
 
-def generate(text=None, *, image=None, seed=0, samples=1, **kwargs):
+def generate(text=None, *, image=None, seed=0, samples=1, structure=None, **kwargs):
     """Generate articulated objects from a text (or an image) with the shipped model.
 
-    Thin convenience wrapper over ``model.pipeline.Generator`` (loaded once, cached).
+    ``structure`` forces the parts, e.g. ``{"drawer": 3, "door": {"count": 1, "hinge":
+    "left"}}`` (labels, counts, joint types, hinge sides; docs/articulation.md). Thin
+    convenience wrapper over ``model.pipeline.Generator`` (loaded once, cached).
     """
     from model.pipeline import default_generator
-    return default_generator().generate(text, image=image, seed=seed, samples=samples, **kwargs)
+    return default_generator().generate(text, image=image, seed=seed, samples=samples,
+                                        structure=structure, **kwargs)
