@@ -81,7 +81,9 @@ def _fact_ok(key: str, want, label: str, got: dict) -> bool:
     if key == "hinge" and "side" in w:       # "side-hinged": on the left or on the right
         w.discard("side")
         return bool(g) and g <= (w | {"left", "right"}) and w <= g and bool(g & {"left", "right"})
-    return g == w
+    # one value ("a door on the left"): every part of the kind has it; several ("a drawer on
+    # top and one at the bottom"): each of them is taken by some part of the kind
+    return g == w if len(w) == 1 else w <= g
 
 
 def check_spatial(expected: ExpectedStructure, got: GeneratedStructure) -> tuple[dict, list[str]]:

@@ -34,12 +34,15 @@ from model.data import vocab
 # Extra wordings a person may use that the description templates do not (owned here).
 EXTRA_CATEGORY = {
     "StorageFurniture": ("closet", "armoire", "bureau", "locker", "credenza", "cupboards",
+                         "tv stand", "media console", "pedestal", "base unit", "shoe cabinet",
+                         "bathroom cabinet", "display cabinet", "pantry cupboard",
                          "cabinets", "dressers", "kitchen cabinet", "bedside table",
                          "bedside cabinet", "night stand", "tallboy", "chest-of-drawers",
                          "file cabinet", "drawer unit", "drawer cabinet"),
     "Safe": ("safety box", "cash box", "deposit box", "safe deposit box", "gun safe", "wall safe"),
     "Oven": ("toaster oven", "microwave oven", "baking oven", "electric oven", "gas oven"),
-    "WashingMachine": ("washer-dryer", "laundry washer", "washing-machine", "washers"),
+    "WashingMachine": ("washer-dryer", "laundry washer", "washing-machine", "washers",
+                       "front loader", "top loading washer"),
     "Bottle": ("thermos", "vial", "water flask", "jug", "canteen", "bottles", "flasks"),
     "USB": ("usb key", "usb memory stick", "memory key", "usb-stick", "usb stick drive",
             "flashdrive", "usb flash stick"),
@@ -49,7 +52,8 @@ EXTRA_PART = {
     "knob": ("control knob", "temperature knob", "burner knob"),
     "button": ("switch", "start button", "power button"),
     "dial": ("program dial", "timer dial", "program selector", "selector"),
-    "door": ("oven door", "glass door", "porthole door", "front door", "hatch"),
+    "door": ("oven door", "glass door", "porthole door", "front door", "hatch", "porthole",
+             "flap", "front flap", "flap door"),
     "lid": ("top lid", "cover"),
     "cap": ("screw cap", "bottle cap", "usb cap", "stopper"),
     "tray": ("baking tray", "baking sheet"),
@@ -64,12 +68,14 @@ EXTRA_MOTION = {
                   "can be pushed in", "can be pulled out", "translates", "translating",
                   "pulls off", "pull off", "pulled off", "slide off", "comes off", "come off",
                   "lifts off", "lift off", "press in", "presses in", "pressed in", "push in",
-                  "pushed in", "can be pressed", "can be pushed", "pressable", "pop off"),
+                  "pushed in", "can be pressed", "can be pushed", "pressable", "pop off",
+                  "pull straight off", "pulled straight off", "pull it off"),
     "revolute": ("hinge", "hinges", "hinged", "swing", "swings", "swinging", "swing open",
                  "swings open", "swings out", "pivot", "pivots", "pivoting", "flips open",
                  "flips up", "flip open", "flip-up", "folds down", "drops down", "swivel",
                  "swivels", "swiveling", "swivelling", "opens on hinges", "drop-down", "drops open",
-                 "hinged at"),
+                 "hinged at", "pull-down", "fold-down", "flip-up", "lift-up", "to a stop",
+                 "tilting", "tilts"),
     "continuous": ("spin", "spins", "spinning", "spins freely", "turns freely",
                    "rotates freely", "endlessly", "all the way around", "360 degrees",
                    "rotates continuously", "without a stop", "without stops"),
@@ -95,7 +101,7 @@ DEFINITE = {"the", "this", "these", "those", "that", "its", "their", "his", "her
 LOWER_BOUND_WORDS = {"both": 2, "several": 2, "multiple": 2, "many": 2, "some": 1,
                      "various": 2, "numerous": 2, "a few": 2, "a number of": 2, "lots of": 2}
 ZERO_WORDS = ("no", "without", "zero", "lacks", "lacking", "none of")
-DISTRIBUTIVE = ("each", "every", "per", "each of the", "every one of the")
+DISTRIBUTIVE = ("each", "every", "per", "each of the", "every one of the", "both with")
 EXACT_NUMBER_PHRASES = {"a pair of": 2, "pair of": 2, "a couple of": 2, "couple of": 2,
                         "a single": 1, "one single": 1, "just one": 1, "only one": 1,
                         "single": 1, "double": 2, "twin": 2, "triple": 3, "a trio of": 3,
@@ -272,6 +278,10 @@ def _lexicon():
     for label, words in vocab.PART_PLURALS.items():
         for w in words:
             parts.setdefault(w, (label, True))
+    for (_, label), words in vocab.ROLE_NAMES.items():
+        for w in words:
+            parts.setdefault(w, (label, False))
+            parts.setdefault(vocab.plural(w), (label, True))
     for label, words in EXTRA_PART.items():
         for w in words:
             parts.setdefault(w, (label, False))
@@ -333,6 +343,7 @@ def _sentences(text: str) -> list[str]:
     text = text.lower().replace("—", ", ").replace("–", ", ").replace("&", " and ")
     # "next to each other" is not a distribution, "one another" not a count
     text = re.sub(r"\beach other\b", "eachother", text)
+    text = re.sub(r"\b([a-z]+)-like\b", " ", text)          # "a knob-like dial" is a dial
     text = re.sub(r"\bone another\b", "oneanother", text)
     text = re.sub(r"\(?\b[a-z]+[- ]style\b\)?", " ", text)   # "(knob style)" is a look, not a part
     text = re.sub(r"\s+", " ", text)
@@ -366,6 +377,8 @@ class _Mention:
     side: bool = False             # a side adjective before the noun ("a left door")
     dist_of: str | None = None     # distributive: multiply by the count of this label
     dist_head: bool = False        # the part a distributive word quantifies ("each drawer")
+    single: bool = False           # "the door", "its lid", "porthole door," (one, if nothing
+                                   # else counts this part kind)
 
 
 def _scan_quantifier(toks: list[_Tok], k: int, m: _Mention, motions: list) -> None:
@@ -399,12 +412,14 @@ def _scan_quantifier(toks: list[_Tok], k: int, m: _Mention, motions: list) -> No
             return
         elif t.kind in ("DET", "DIST"):
             m.lower = 1
-            m.dist_head = t.kind == "DIST"
+            m.dist_head = t.kind == "DIST" and t.text != "both with"
+            m.single = t.kind == "DET" and not m.plural and t.text not in ("all", "any")
             return
         else:   # PUNCT, PART, CAT end the noun phrase
             break
         j -= 1
     m.lower = 2 if m.plural else 1
+    m.single = not m.plural
 
 
 def _distributive_target(toks: list[_Tok], k: int) -> str | None:
@@ -414,6 +429,11 @@ def _distributive_target(toks: list[_Tok], k: int) -> str | None:
         if toks[j].kind == "DIST":
             for i in range(j + 1, min(len(toks), j + 5)):
                 if toks[i].kind == "PART":
+                    return toks[i].value
+                if toks[i].kind == "PUNCT":
+                    break
+            for i in range(k - 1, max(-1, k - 8), -1):   # "four drawers with knobs on each"
+                if toks[i].kind == "PART" and toks[i].value != toks[k].value:
                     return toks[i].value
             return None
         if not (toks[j].kind == "WORD" and toks[j].text in ("on", "for", "in", "at", "to", "of")):
@@ -425,7 +445,7 @@ def _distributive_target(toks: list[_Tok], k: int) -> str | None:
             for i in range(j + 1, k):
                 if toks[i].kind == "PART":
                     return toks[i].value
-            for i in range(j - 1, max(-1, j - 6), -1):
+            for i in range(j - 1, max(-1, j - 9), -1):
                 if toks[i].kind == "PART":
                     return toks[i].value
             return None
@@ -441,7 +461,7 @@ def _distributive_target(toks: list[_Tok], k: int) -> str | None:
 _N = r"(\d+|" + "|".join(sorted(vocab.NUMBER_WORDS[1:13], key=len, reverse=True)) + r"|a single|single)"
 _SIDE = r"(left|right|top|bottom|back|rear|upper|lower|side)"
 _SIDE_NAME = {"rear": "back", "upper": "top", "lower": "bottom"}
-HINGED = ("door", "lid")
+HINGED = ("door", "lid", "cap")   # a bottle's hinged "cap" is read as its lid (_tidy)
 ARRANGED = ("drawer", "door", "lid", "tray", "knob", "dial", "button")
 
 
@@ -476,7 +496,7 @@ def _rewrite_counts(sentence: str) -> tuple[str, list[_Fact]]:
     pat = re.compile(
         rf"\b(?:in |into |as )?(?:a |an )?{_N}\s?(?:x|×|by)\s?{_N}\s(grid|array|keypad|matrix|layout)(\s+of\b)?"
         rf"|\b{_N} (rows|columns) of {_N}\b(\s+(?=\w))?"
-        rf"|\b(?:a|an|the|its) keypad( of\b)?")
+        rf"|\b(?:a |an |the |its |their |two |both )?keypads?(?!\s+(?:buttons?|keys))( of\b)?")
     for m in pat.finditer(sentence):
         out.append(sentence[pos:m.start()])
         here = sum(len(x) for x in out)
@@ -535,6 +555,7 @@ _SPATIAL_PATTERNS: list[tuple[str, str, str]] = [
     ("hinge", rf"\b{_SIDE}[- ]hinged\b", "pre"),
     ("hinge", rf"\bwith (?:a|its|the|their) {_SIDE}(?:[- ]hand)? hinges?\b", "post"),
     ("hinge", rf"\bhinges? (?:is |are |sits? |sit |runs? )?(?:on|at|along) (?:the |its )?{_SIDE}(?: side| edge)?\b", "post"),
+    ("hinge", rf"\b(?:at|on|by) (?:the|its) {_SIDE} hinges?\b", "post"),
     ("hinge+sideways", r"\b(?:swings?|opens?|swinging|opening) (?:open |out )?(?:to|towards) the (left|right)\b", "post"),
     ("opens=down", r"\b(?:opens?|swings?|folds?|drops?|pulls?|flips?|tips?|falls?|tilts?)(?: open| out)?,? ?down(?:ward|wards)?\b", "post"),
     ("opens=down", r"\b(?:drop|fold|pull|flip)[- ]down\b", "pre"),
@@ -548,14 +569,19 @@ _SPATIAL_PATTERNS: list[tuple[str, str, str]] = [
                       r"|on top of (?:eachother|oneanother)|in a (?:single |vertical )?(?:column|stack)"
                       r"|vertically stacked|in a vertical line)\b", "post"),
     ("layout=column", r"\ba (?:vertical )?stack of\b", "pre"),
-    ("layout=row", r"\b(?:side[- ]by[- ]side|in a (?:single |horizontal |neat |straight )?(?:row|line)"
+    ("layout=row", r"\b(?:side[- ]by[- ]side|in (?:a|one) (?:single |horizontal |neat |straight )?(?:row|line)"
                    r"|next to (?:eachother|oneanother)|beside (?:eachother|oneanother)"
                    r"|in a horizontal line)\b", "post"),
     ("layout=row", r"\ba (?:horizontal )?row of\b", "pre"),
     ("layout=grid", r"\bin a grid\b", "post"),
+    ("across", rf"\b{_N} across(?:,? (?:and |by |in )?{_N} (?:down|high|deep|tall))?", "post"),
+    ("over", rf"\b{_N} over {_N}\b", "post"),
+    ("relit", r"\b(above|below|under|underneath|beneath|on top of) (?:it|them)\b", "post"),
+    ("vpos+hpos", r"\b(?:on|at|in) the (top|bottom)[- ](left|right)\b", "post"),
+    ("vpos", r"\bacross the (top|bottom)\b", "post"),
     ("rows", rf"\bin {_N} (?:horizontal )?rows\b", "post"),
     ("columns", rf"\bin {_N} (?:vertical )?columns\b", "post"),
-    ("relation", r"\b(above|over|on top of|below|under|underneath|beneath)\b(?: (?:the|a|an|its|their|both))?", "post"),
+    ("relation", r"\b(above|on top of|below|under|underneath|beneath)\b(?: (?:the|a|an|its|their|both))?", "post"),
     ("hpos", r"\b(?:on|at|to) the (left|right)(?:[- ]hand)?(?: side| end| half)?\b", "post"),
     ("vpos", r"\b(?:on|at) the (top|bottom)\b(?! of)|\bon (top)\b(?! of)|\bat the (base)\b", "post"),
 ]
@@ -575,15 +601,39 @@ def _spatial_facts(sentence: str, toks: list[_Tok]) -> list[_Fact]:
             a, b = m.span()
             vals = [v for v in m.groups() if v]
             if key == "relation":
-                nxt = [t for t in toks if t.start >= b][:2]
-                part = next((t for t in nxt if t.kind == "PART"), None)
-                if part is not None and all(t.kind in ("PART", "WORD", "NUM", "DET") for t in nxt):
+                part = None
+                for t in [t for t in toks if t.start >= b][:5]:   # "above a row of three buttons"
+                    if t.kind == "PART":
+                        part = t
+                        break
+                    if t.kind not in ("WORD", "NUM", "DET", "MULT") or \
+                            (t.text in STOP_WORDS and t.text != "of"):
+                        break
+                if part is not None:
                     rel = "above" if vals[0] in _ABOVE else "below"
                     facts.append(_Fact(rel, [part.value], a, part.end, "post", part.value))
                     b = part.end
                 else:   # "a door underneath": below the part named before it, if any
                     facts.append(_Fact("relprev", ["above" if vals[0] in _ABOVE else "below"],
                                        a, b, "post"))
+            elif key == "across":
+                facts.append(_Fact("columns", [_num(vals[0])], a, b, mode))
+                if len(vals) > 1:
+                    facts.append(_Fact("rows", [_num(vals[1])], a, b, mode))
+            elif key == "over":
+                if _num(vals[0]) == _num(vals[1]):
+                    for k2, v2 in (("layout", "grid" if _num(vals[0]) > 1 else "column"),
+                                   ("rows", 2), ("columns", _num(vals[0]))):
+                        facts.append(_Fact(k2, [v2], a, b, mode))
+            elif key == "relit":
+                # "three drawers side by side above them": about the part named just before;
+                # "and, below them, two doors": about the part named next
+                before = [t for t in toks if t.end <= a and t.kind in ("PART", "PUNCT")]
+                mode2 = "post" if before and before[-1].kind == "PART" else "next"
+                facts.append(_Fact("relit", ["above" if vals[0] in _ABOVE else "below"], a, b, mode2))
+            elif key == "vpos+hpos":
+                facts.append(_Fact("vpos", [vals[0]], a, b, mode))
+                facts.append(_Fact("hpos", [vals[1]], a, b, mode))
             elif key == "hinge+sideways":
                 facts.append(_Fact("hinge", vals, a, b, mode))
                 facts.append(_Fact("opens", ["sideways"], a, b, mode))
@@ -610,13 +660,30 @@ def _spatial_facts(sentence: str, toks: list[_Tok]) -> list[_Fact]:
 
 
 def _attach(facts: list[_Fact], toks: list[_Tok], earlier: list[str],
-            spatial: dict[str, dict]) -> None:
-    """Attach each fact to the part it describes and merge it into ``spatial``."""
+            spatial: dict[str, dict]) -> list[str]:
+    """Attach each fact to the part it describes and merge it into ``spatial``; returns the
+    labels a hinge or opening fact was said of (they turn on a hinge: revolute)."""
+    hinged: list[str] = []
     relation_objects = {(f.relation_to, f.end) for f in facts if f.relation_to}
     parts = [t for t in toks if t.kind == "PART" and (t.value, t.end) not in relation_objects]
     for f in facts:
         allowed = HINGED if f.key in ("hinge", "opens") else \
             ARRANGED if f.key in ("layout", "rows", "columns") else vocab.COUNTABLE_LABELS
+        if f.key == "relit":
+            # "below it, a small door" / "three doors below them": one part kind relative to
+            # the one named before
+            before = [t.value for t in parts if t.end <= f.start]
+            after = [t.value for t in parts if t.start >= f.end]
+            if f.mode == "post" and before:
+                subj = before[-1]
+                objs = [v for v in before[:-1] if v != subj] or [v for v in earlier if v != subj]
+            else:
+                subj = after[0] if after else None
+                objs = [v for v in before if v != subj] or [v for v in earlier if v != subj]
+            if subj is not None and objs:
+                d = spatial.setdefault(subj, {})
+                d[f.values[0]] = sorted(set(d.get(f.values[0], [])) | {objs[-1]})
+            continue
         target = None
         # a phrase right before a part noun (adjectives between) is about that part:
         # "stacked hinged doors", "a drop-down door"
@@ -652,10 +719,13 @@ def _attach(facts: list[_Fact], toks: list[_Tok], earlier: list[str],
                 f = _Fact("vpos", ["top" if f.values[0] == "above" else "bottom"], f.start,
                           f.end, f.mode)
         facts_of = spatial.setdefault(target, {})
+        if f.key in ("hinge", "opens"):
+            hinged.append(target)
         if f.key in ("layout", "rows", "columns"):
             facts_of[f.key] = f.values[0]
         else:
             facts_of[f.key] = sorted(set(facts_of.get(f.key, [])) | set(f.values))
+    return hinged
 
 
 def parse_prompt(text: str) -> ExpectedStructure:
@@ -668,7 +738,9 @@ def parse_prompt(text: str) -> ExpectedStructure:
     for si, sentence in enumerate(_sentences(text)):
         sentence, grid_facts = _rewrite_counts(sentence)
         toks = _tokenize(sentence)
-        _attach(grid_facts + _spatial_facts(sentence, toks), toks, earlier_parts, out.spatial)
+        for lab in _attach(grid_facts + _spatial_facts(sentence, toks), toks, earlier_parts,
+                           out.spatial):
+            motion_links.append((frozenset({"revolute"}), lab, False))
         earlier_parts += [t.value for t in toks if t.kind == "PART"]
         prefix_motion_at: set[int] = set()
         for k, t in enumerate(toks):
@@ -763,6 +835,13 @@ def parse_prompt(text: str) -> ExpectedStructure:
 
     exact1, _ = combine(mentions, {})
     exact, lower = combine(mentions, exact1)
+    # "the door is hinged on the left", "porthole door, soap drawer": one of each, when no
+    # other mention counts or bounds that part kind
+    for lab in list(lower):
+        ms = [m for m in mentions if m.label == lab]
+        if ms and all(m.single and m.dist_of is None for m in ms):
+            exact[lab] = 1
+            del lower[lab]
     out.counts, out.min_counts = exact, lower
 
     joint: dict[str, set] = {}
@@ -778,4 +857,73 @@ def parse_prompt(text: str) -> ExpectedStructure:
             joint[label] = set(types)
     out.joint_types = {k: sorted(v) for k, v in joint.items()
                        if out.counts.get(k, 1) != 0}
+    _tidy(out, text)
+    return out
+
+
+# Everyday names that say which part an object has ("a swivel flash drive" has a swivel cap).
+IMPLIED_PARTS = {
+    "swivel usb stick": ("cap", "revolute"), "swivel flash drive": ("cap", "revolute"),
+    "screw-top bottle": ("cap", "screw"), "flip-top bottle": ("lid", "revolute"),
+}
+
+
+def _tidy(out: ExpectedStructure, text: str) -> None:
+    """Category-specific readings and tidy spatial facts."""
+    low = text.lower()
+    for name, (lab, jt) in IMPLIED_PARTS.items():
+        if name in low and lab not in out.counts and lab not in out.min_counts:
+            out.counts[lab] = 1
+            out.joint_types.setdefault(lab, [jt])
+    if out.category == "USB" and "lid" in (set(out.counts) | set(out.min_counts)) \
+            and "cap" not in out.counts:          # a USB stick's cover is its cap
+        _relabel(out, "lid", "cap")
+    if out.category == "Bottle" and out.joint_types.get("cap") == ["revolute"] \
+            and "lid" not in out.counts:          # a bottle's hinged "cap" is a flip lid
+        _relabel(out, "cap", "lid")
+    for facts in out.spatial.values():
+        h = facts.get("hinge")
+        if h and "side" in h and len(h) > 1:
+            facts["hinge"] = [x for x in h if x != "side"]
+        if "rows" in facts and "columns" in facts and "layout" not in facts:
+            R, C = facts["rows"], facts["columns"]
+            facts["layout"] = "grid" if R > 1 and C > 1 else ("row" if R == 1 else "column")
+
+
+def _relabel(out: ExpectedStructure, a: str, b: str) -> None:
+    for table in (out.counts, out.min_counts, out.joint_types, out.spatial):
+        if a in table:
+            table[b] = table.pop(a)
+
+
+# --------------------------------------------------------------------------------------------
+# the annotated free-form prompt file
+# --------------------------------------------------------------------------------------------
+def read_annotated_prompts(path=None) -> list[tuple[str, ExpectedStructure]]:
+    """(prompt, expected structure) of every prompt of a free-form file: each prompt line is
+    followed by its ``#> ...`` structure line (``ExpectedStructure.from_line``). Default: the
+    shipped ``prompts_freeform.txt``. A prompt without a structure line, or a structure line
+    without a prompt, is a ValueError naming the line."""
+    from pathlib import Path
+    path = Path(path) if path else Path(__file__).with_name("prompts_freeform.txt")
+    out: list[tuple[str, ExpectedStructure]] = []
+    pending: tuple[int, str] | None = None
+    for no, raw in enumerate(path.read_text().splitlines(), 1):
+        line = raw.strip()
+        if line.startswith("#>"):
+            if pending is None:
+                raise ValueError(f"{path}:{no}: structure line without a prompt above it")
+            try:
+                out.append((pending[1], ExpectedStructure.from_line(line[2:].strip())))
+            except ValueError as e:
+                raise ValueError(f"{path}:{no}: {e}") from None
+            pending = None
+        elif not line or line.startswith("#"):
+            continue
+        else:
+            if pending is not None:
+                raise ValueError(f"{path}:{pending[0]}: prompt without a '#> ...' structure line")
+            pending = (no, line)
+    if pending is not None:
+        raise ValueError(f"{path}:{pending[0]}: prompt without a '#> ...' structure line")
     return out
