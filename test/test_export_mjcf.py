@@ -217,3 +217,35 @@ def test_flat_visual_kept_degenerate_collision_dropped(tmp_path):
     m = mujoco.MjModel.from_xml_path(res.scene_xml)
     types = [mujoco.mjtGeom(t).name for t, b in zip(m.geom_type, m.geom_bodyid) if b > 0]
     assert sorted(types) == ["mjGEOM_BOX", "mjGEOM_MESH"]      # the flat panel is shown
+
+
+@pytest.mark.parametrize("name", ["cabinet", "bottle"])
+def test_mjcf_passes_the_audit_physics_check_as_its_urdf_does(examples, name):
+    from model.metrics.physics import physics_check
+
+    folder, res = examples[name]
+    urdf = physics_check(next(folder.glob("*.urdf")))
+    mjcf = physics_check(res.model_xml)
+    assert urdf.ok, urdf.failures
+    assert mjcf.ok, mjcf.failures
+
+
+def test_effort_and_servo_gains_follow_the_shared_rule(examples):
+    from model.export.mjcf import servo_gains
+
+    folder, res = examples["cabinet"]
+    urdf = read_urdf_folder(folder)
+    root = etree.parse(res.model_xml).getroot()
+    joints = {j.name: j for j in urdf.joints}
+    for act in root.find("actuator"):
+        j = joints[act.get("joint")]
+        el = root.find(f".//joint[@name='{j.name}']")
+        assert [float(v) for v in el.get("actuatorfrcrange").split()] == [-j.effort, j.effort]
+        # the stiffer of the two rules: the effort at a tenth of the range off target
+        assert float(act.get("kp")) >= j.effort / (0.1 * (j.upper - j.lower)) * (1 - 1e-5)
+        assert float(el.get("armature")) >= 0.01
+    kp, kv, arm = servo_gains(0.02, 10.0, 1.0, hz=4.0)
+    assert kp == pytest.approx(100.0) and arm >= 0.01
+    assert kv == pytest.approx(2 * np.sqrt(kp * (0.02 + arm)))
+    kp, _, _ = servo_gains(2.0, 0.0, 1.0, hz=4.0)
+    assert kp == pytest.approx(2.0 * (2 * np.pi * 4.0) ** 2)

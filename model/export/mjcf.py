@@ -23,9 +23,10 @@ Mapping from the URDF:
   one body with both joints. An equality constraint couples the slide to the hinge across
   their ranges, so the part travels as it turns; the hinge's actuator drives both.
 * A position actuator per actuated joint, named after the joint. ``ctrlrange`` is the joint
-  range and ``forcerange`` is the URDF effort. ``kp`` is set from the joint-space inertia at
-  rest so that every joint has the same natural frequency (``kp_hz``), critically damped
-  (``dampratio`` 1).
+  range and ``forcerange`` (and the joint's ``actuatorfrcrange``) is the URDF effort. Gains
+  and joint armature come from ``servo_gains`` (the rule the audit's physics check uses):
+  the joint-space inertia at rest times (2π ``kp_hz``)², or the effort at a tenth of the
+  range off target where that is stiffer, critically damped.
 * The root body is fixed to the world, lifted so the object's lowest point is 1 mm above
   the floor (no part starts in contact with it). With ``floating=True`` it gets a free joint
   instead and its lowest point is at z = 0.
@@ -62,6 +63,22 @@ TIMESTEP = 0.002
 # A fixed object hovers this far above the floor: a moving part resting on the floor would
 # otherwise start in contact with it and be held by friction (a wheel, a door's lower edge).
 FLOOR_CLEARANCE = 0.001                # m
+MIN_ARMATURE = 0.01                    # kg or kg m^2: motor-like inertia of a driven joint
+
+
+def servo_gains(inertia: float, effort: float, span: float, *, hz: float,
+                timestep: float = TIMESTEP, min_armature: float = MIN_ARMATURE
+                ) -> tuple[float, float, float]:
+    """(kp, kv, armature) of a position servo on a joint with joint-space ``inertia``: the
+    bandwidth ``hz`` or, when stiffer, the joint's ``effort`` at a tenth of its range
+    (``span``) off target, so a 20 g knob is pushed as hard as its joint allows rather than
+    by a servo scaled to its own 20 g. The armature (a motor's reflected inertia) keeps the
+    servo stable at ``timestep`` (omega dt <= 0.2); kv damps it critically."""
+    w = 2.0 * math.pi * hz
+    kp = max(inertia * w * w, effort / (0.1 * max(span, 1e-9)) if effort > 0 else 0.0, 1e-6)
+    armature = max(min_armature, kp * (timestep / 0.2) ** 2 - inertia)
+    kv = 2.0 * math.sqrt(kp * (inertia + armature))
+    return kp, kv, armature
 
 
 @dataclass
@@ -271,6 +288,8 @@ def _build(model: URDFModel, assets: _Assets, *, floating: bool, on_floor: bool)
                       "axis": _fmt(j.axis)}
             if j.type in ("revolute", "prismatic"):
                 jattrs["range"] = _fmt([j.lower, j.upper])
+            if j.effort > 0:    # on the joint too, as MuJoCo's own URDF import puts it
+                jattrs["actuatorfrcrange"] = _fmt([-j.effort, j.effort])
             etree.SubElement(body, "joint", attrib=jattrs)
             joints_out.append(j.name)
         for k, g in enumerate(link.visuals):
@@ -378,12 +397,16 @@ def _tune(root, xml_path: Path, *, kp_hz: float, exclude_depth: float):
     mujoco.mj_forward(m, d)
     M = np.zeros((m.nv, m.nv))
     mujoco.mj_fullM(m, M, d.qM)
-    w2 = (2.0 * math.pi * kp_hz) ** 2
     gains = {}
     for k in range(m.nu):
         jid = int(m.actuator_trnid[k, 0])
         dof = int(m.jnt_dofadr[jid])
-        gains[m.actuator(k).name] = max(float(M[dof, dof]) * w2, 1e-6)
+        lo, hi = m.actuator_ctrlrange[k]
+        effort = float(np.abs(m.actuator_forcerange[k]).max()) if m.actuator_forcelimited[k] \
+            else 0.0
+        gains[m.actuator(k).name] = servo_gains(
+            max(float(M[dof, dof]) - float(m.dof_armature[dof]), 1e-9), effort,
+            float(hi - lo), hz=kp_hz)
     # MuJoCo does not filter parent-child contacts when the parent is welded to the world
     # (the fixed root): exclude them explicitly, as for moving parents.
     pairs = {tuple(sorted((m.body(int(m.body_parentid[b])).name, m.body(b).name)))
@@ -396,7 +419,10 @@ def _tune(root, xml_path: Path, *, kp_hz: float, exclude_depth: float):
             if b1 and b2:                   # not the world (the floor lives in scene.xml)
                 pairs.add(tuple(sorted((m.body(b1).name, m.body(b2).name))))
     for el in root.find("actuator"):
-        el.set("kp", f"{gains[el.get('name')]:.6g}")
+        kp, _, armature = gains[el.get("name")]   # MuJoCo's dampratio 1 gives kv
+        el.set("kp", f"{kp:.6g}")
+        joint = root.find(f".//joint[@name='{el.get('joint')}']")
+        joint.set("armature", f"{armature:.6g}")
     if pairs:
         contact = etree.Element("contact")
         for a, b in sorted(pairs):

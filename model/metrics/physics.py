@@ -4,9 +4,10 @@ are driven?
 The URDF is compiled with MjSpec (visual meshes left out: only collision geometry takes
 part), a ground plane is added under its lowest collision point at rest (2 mm lower for
 the welded base, which the floor does not carry) and every hinge / slide joint gets a position
-actuator, critically damped, at least as stiff as 4 Hz on the joint's effective inertia and
-as the URDF's effort limit at a tenth of the range off target (a motor-like armature keeps
-such a servo stable on a 5 g cap), and whose controller cancels gravity on the
+actuator with the gains the MJCF export writes (``model.export.mjcf.servo_gains``: critically
+damped, at least as stiff as 4 Hz on the joint's effective inertia and as the URDF's effort
+limit at a tenth of the range off target, a motor-like armature keeping such a servo stable
+on a 5 g cap), and whose controller cancels gravity on the
 moving links (MuJoCo's actuator gravity compensation, as a robot's joint controller would),
 so a 5 g cap is not left sagging on a vertical slide. All joints are swept together from their
 lower limit to their upper limit and back (a triangle wave over ``seconds``), once with the
@@ -34,6 +35,8 @@ from pathlib import Path
 from typing import Optional
 
 import numpy as np
+
+from model.export.mjcf import servo_gains
 
 log = logging.getLogger(__name__)
 
@@ -188,20 +191,16 @@ def _run(urdf: Path, free: bool, cfg: PhysicsConfig, tmpdir: str) -> tuple[Physi
     mujoco.mj_forward(m, d)
     M = np.zeros((m.nv, m.nv))
     mujoco.mj_fullM(m, M, d.qM)
-    w = 2 * math.pi * cfg.drive_hz
     for k, (lo, hi, _, da) in enumerate(rng):
         jid = m.joint(names[k]).id
         inertia = max(float(M[da, da]) - float(m.dof_armature[da]), 1e-9)
-        # at least the URDF's effort at a tenth of the range off target: a 1 g cap is
-        # pushed as hard as its joint allows, not by a servo scaled to its own 1 g
         effort = float(np.abs(m.jnt_actfrcrange[jid]).max()) if m.jnt_actfrclimited[jid] else 0.0
-        kp = max(inertia * w * w, effort / (0.1 * max(hi - lo, 1e-9)))
-        # motor-like armature keeps the stiff servo stable at this timestep (omega dt <= 0.2)
-        arm = max(cfg.min_inertia, kp * (cfg.timestep / 0.2) ** 2 - inertia)
-        m.dof_armature[da] = arm
+        kp, kv, m.dof_armature[da] = servo_gains(inertia, effort, hi - lo, hz=cfg.drive_hz,
+                                                 timestep=cfg.timestep,
+                                                 min_armature=cfg.min_inertia)
         m.actuator_gainprm[k, 0] = kp
         m.actuator_biasprm[k, 1] = -kp
-        m.actuator_biasprm[k, 2] = -2.0 * math.sqrt(kp * (inertia + arm))
+        m.actuator_biasprm[k, 2] = -kv
     root = 1
     extent = float(np.ptp(m.geom_aabb[:, 3:], axis=0).max()) if m.ngeom else 1.0
     start_xy = d.xpos[root, :2].copy()
