@@ -509,7 +509,8 @@ def test_partmaps_of_a_render_set_and_a_trunk_trained_on_them(tiny_set, tmp_path
     with pytest.raises(ValueError, match="neither"):
         initial_trunk(image_ckpt, 12)
     (tmp_path / "garbage.pt").write_bytes(b"not a checkpoint")
-    with pytest.raises(ValueError, match="cannot be read"):
+    from model.core.checkpoint import CheckpointError
+    with pytest.raises(CheckpointError, match="corrupt or not an artformer checkpoint"):
         initial_trunk(tmp_path / "garbage.pt", 12)
     assert cli_main(trunk_args + ["--out", str(tmp_path / "t2"), "--steps", "2", "--evals", "1",
                                   "--init-trunk", str(tmp_path / "t1" / "trunk.pt")]) == 0

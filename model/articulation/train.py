@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import json
 import logging
-import math
 import time
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
@@ -230,15 +229,14 @@ def own_input_tokens(net: ArticulationTransformer, items: list[TreeItem], groups
     return len(own)
 
 
-def lr_at(step: int, tc: TrainConfig, elapsed: float = 0.0) -> float:
-    """Linear warm-up, then cosine to 10 % by max_steps or by the wall-clock budget,
-    whichever comes first (a budget-limited run still anneals)."""
-    if step < tc.warmup_steps:
-        return tc.lr * (step + 1) / tc.warmup_steps
-    prog = min(1.0, (step - tc.warmup_steps) / max(1, tc.max_steps - tc.warmup_steps))
-    if tc.max_minutes > 0:
-        prog = max(prog, min(1.0, elapsed / (tc.max_minutes * 60.0)))
-    return tc.lr * (0.1 + 0.9 * 0.5 * (1 + math.cos(math.pi * prog)))
+def loop_config(tc: TrainConfig, desc: str, progress: bool, out=None) -> "LoopConfig":
+    """The shared loop's settings of a transformer run (text or image): warm-up, then cosine
+    to 10 % by max_steps or by the wall-clock budget, whichever comes first."""
+    from model.core.training import LoopConfig
+    return LoopConfig(steps=tc.max_steps, lr=tc.lr, warmup=tc.warmup_steps, floor=0.1,
+                      minutes=tc.max_minutes, val_every=tc.val_every, ckpt_every=tc.ckpt_every,
+                      grad_clip=tc.grad_clip, progress=progress, desc=desc,
+                      log_dir=None if out is None else str(out))
 
 
 @dataclass
@@ -290,14 +288,8 @@ def evaluate_loss(net: ArticulationTransformer, items, geo_shape, text_cache, tc
                                                       label_cs, net.cfg.count_labels))
 
 
-def train(rc: RunConfig) -> Path:
-    """Train (or resume) a run in ``rc.out``; writes last.pt (resumable) and transformer.pt."""
-    tc, cfg = rc.train, rc.net
-    torch.set_num_threads(max(1, tc.threads))
-    out = Path(rc.out)
-    out.mkdir(parents=True, exist_ok=True)
-    t_start = time.time()
-    tg = rc.targets
+def _configure(cfg: ArticulationConfig, tg) -> None:
+    """The network's target dimensions from the targets provider."""
     cfg.cs_dim = int(tg.cs_dim)
     if cfg.predict_z:
         cfg.z_dim = int(tg.z_dim)
@@ -305,7 +297,13 @@ def train(rc: RunConfig) -> Path:
         cfg.num_codebooks, cfg.codebook_size = int(tg.num_codebooks), int(tg.codebook_size)
     else:   # one_codebook ablation: see _CodebookView
         cfg.codebook_size = int(tg.num_codebooks) * int(tg.codebook_size)
-    view = _CodebookView(tg, cfg)
+
+
+def _text_data(rc: RunConfig, cfg: ArticulationConfig, out: Path):
+    """Items (train, val), the extra-data record and the text cache of a run; caches under
+    OUT/cache. -> data, train items, val items, extra info, text cache."""
+    tc = rc.train
+    view = _CodebookView(rc.targets, cfg)
     data = prepare_data(rc.data, view, predict_z=cfg.predict_z,
                         cache_dir=str(out / "cache"), progress=rc.progress)
     tr, va = data.items["train"], data.items.get("val") or []
@@ -328,17 +326,13 @@ def train(rc: RunConfig) -> Path:
                    progress=rc.progress)
     if len(text_cache.index) != n_before:
         text_cache.save(out / "cache" / "texts.pt")
-    if text_cache.dim != cfg.cond_dims.get("text"):
-        cfg.cond_dims["text"] = text_cache.dim
-    if cfg.child_counts:
-        cfg.count_labels = sorted(set(data.label_table["labels"]))
-    torch.manual_seed(tc.seed)
-    net = ArticulationTransformer(cfg)
-    opt = torch.optim.AdamW(net.parameters(), lr=tc.lr, weight_decay=tc.weight_decay,
-                            betas=(0.9, 0.98))
-    step, elapsed_before, history = 0, 0.0, []
-    rng = np.random.default_rng(tc.seed)
-    last = out / "last.pt"
+    return data, tr, va, extra_info, text_cache
+
+
+def _start_state(rc: RunConfig, net: ArticulationTransformer, opt, last: Path, extra_info,
+                 prior: str):
+    """Weights of --init, or where --resume continues (None: a fresh run)."""
+    from model.core.training import LoopState
     if rc.init and not (rc.resume and last.exists()):
         src = read_checkpoint(rc.init)
         own = net.state_dict()
@@ -348,52 +342,76 @@ def train(rc: RunConfig) -> Path:
         skipped = sorted(set(own) - set(same))
         log.info("initialised from %s (%d tensors; not taken: %s)", rc.init, len(same),
                  skipped[:8] or "none")
-    if rc.resume and last.exists():
-        ck = read_checkpoint(last)
-        if ck["config"] != asdict(cfg):
-            raise ValueError(f"{last} was trained with another config; drop --resume or use "
-                             f"another --out")
-        had = [(x["data_version"], x.get("wordings", "all")) for x in ck.get("extra_train", [])]
-        if had != [(x["data_version"], x["wordings"]) for x in extra_info]:
-            raise ValueError(f"{last} was trained with extra data {had or 'none'} (data "
-                             f"version, wordings); resume it with the same --extra-train "
-                             f"folders, in the same order, and the same --extra-wordings")
-        net.load_state_dict(ck["state_dict"])
-        opt.load_state_dict(ck["optimizer"])
-        step = int(ck["step"])
-        elapsed_before = float(ck.get("elapsed", 0.0))
-        history = list(ck.get("history", []))
-        rng = np.random.default_rng(tc.seed + step)
-        log.info("resumed %s at step %d", last, step)
+    if not (rc.resume and last.exists()):
+        return None
+    ck = read_checkpoint(last, prior=prior)
+    if ck["config"] != asdict(net.cfg):
+        raise ValueError(f"{last} was trained with another config; drop --resume or use "
+                         f"another --out")
+    had = [(x["data_version"], x.get("wordings", "all")) for x in ck.get("extra_train", [])]
+    if had != [(x["data_version"], x["wordings"]) for x in extra_info]:
+        raise ValueError(f"{last} was trained with extra data {had or 'none'} (data "
+                         f"version, wordings); resume it with the same --extra-train "
+                         f"folders, in the same order, and the same --extra-wordings")
+    net.load_state_dict(ck["state_dict"])
+    opt.load_state_dict(ck["optimizer"])
+    log.info("resumed %s at step %d", last, ck["step"])
+    return LoopState.of(ck)
+
+
+def train(rc: RunConfig) -> Path:
+    """Train (or resume) a run in ``rc.out``; writes last.pt (resumable) and transformer.pt.
+    Under torchrun every process trains on its share of each epoch's batches (DDP)."""
+    from model.core.training import Dist, seed_all, train_loop
+    tc, cfg, tg = rc.train, rc.net, rc.targets
+    torch.set_num_threads(max(1, tc.threads))
+    dist = Dist()
+    out = Path(rc.out)
+    out.mkdir(parents=True, exist_ok=True)
+    t_start = time.time()
+    _configure(cfg, tg)
+    if not dist.main:
+        dist.barrier()                       # rank 0 builds the caches first
+    data, tr, va, extra_info, text_cache = _text_data(rc, cfg, out)
+    if dist.main:
+        dist.barrier()
+    if text_cache.dim != cfg.cond_dims.get("text"):
+        cfg.cond_dims["text"] = text_cache.dim
+    if cfg.child_counts:
+        cfg.count_labels = sorted(set(data.label_table["labels"]))
+    rng = seed_all(tc.seed)
+    net = ArticulationTransformer(cfg)
+    opt = torch.optim.AdamW(net.parameters(), lr=tc.lr, weight_decay=tc.weight_decay,
+                            betas=(0.9, 0.98))
+    prior = getattr(tg, "fingerprint", "")
+    state = _start_state(rc, net, opt, out / "last.pt", extra_info, prior)
+    if state is not None:
+        rng = np.random.default_rng(tc.seed + state.step)
+    order = rng                                  # one stream for one process (as before DDP)
+    if dist.active:                              # same epoch order everywhere, own sampling
+        rng = np.random.default_rng([tc.seed, dist.rank, 0 if state is None else state.step])
     common = dict(stats=data.stats, label_table=data.label_table, text_encoder=tc.text_encoder,
                   data_version=data.data_version, seed=tc.seed, command=rc.command,
-                  train_config=asdict(tc))
+                  train_config=asdict(tc), prior=prior)
+    meta = {"ablation": rc.ablation, "targets": getattr(tg, "name", "?"), "init": rc.init or "",
+            "extra_train": extra_info}
 
-    def save(path: Path, final: bool = False) -> None:
-        extra = {"ablation": rc.ablation, "targets": getattr(tg, "name", "?"),
-                 "init": rc.init or "", "extra_train": extra_info,
-                 "elapsed": elapsed_before + time.time() - t_loop, "history": history}
-        if not final:
-            extra["optimizer"] = opt.state_dict()
-        save_checkpoint(path, net, step=step, extra=extra, **common)
+    def save(st, final: bool) -> None:
+        run = {**meta, **st.entries()}
+        save_checkpoint(out / "last.pt", net, extra={**run, "optimizer": opt.state_dict()},
+                        **{**common, "step": st.step})
+        if final:
+            save_checkpoint(out / "transformer.pt", net, extra=run, **{**common, "step": st.step})
+            (out / "history.json").write_text(json.dumps(st.history, indent=1))
 
     label_cs = label_cs_normalised(data)
     epoch: list = []
-    net.train()
-    t_loop = time.time()
-    budget = tc.max_minutes * 60.0
-    bar = None
-    if rc.progress:
-        from tqdm import tqdm
-        bar = tqdm(total=tc.max_steps, initial=step, desc="train transformer", unit="step")
-    run = {}
-    while step < tc.max_steps:
-        if budget and elapsed_before + time.time() - t_loop > budget:
-            log.info("wall-clock budget of %.1f min reached at step %d", tc.max_minutes, step)
-            break
+
+    def step_fn(model, step):
+        nonlocal epoch
         if not epoch:
-            epoch = group_rounds(tr, rng.permutation(len(tr)), tc.batch_size,
-                                 tc.rounds_per_object, rng)
+            epoch = dist.shard(group_rounds(tr, order.permutation(len(tr)), tc.batch_size,
+                                            tc.rounds_per_object, order))
         groups = epoch.pop()
         batch, targets, cond, cmask, idx = make_batch(tr, groups, data.geo_shape, text_cache,
                                                       rng, label_cs, cfg.count_labels)
@@ -401,51 +419,18 @@ def train(rc: RunConfig) -> Path:
         if tc.own_inputs > 0:
             own_input_tokens(net, tr, groups, batch, cond, cmask, "text", tc.own_inputs, rng,
                              data.geo_shape)
-        for g in opt.param_groups:
-            g["lr"] = lr_at(step, tc, elapsed_before + time.time() - t_loop)
-        _, L = net(batch, cond, cmask, "text", drop=drop, cond_index=idx, targets=targets,
-                   weights=asdict(tc))
-        opt.zero_grad(set_to_none=True)
-        L["total"].backward()
-        torch.nn.utils.clip_grad_norm_(net.parameters(), tc.grad_clip)
-        opt.step()
-        step += 1
-        for k, v in L.items():
-            v = float(v.detach())
-            run[k] = 0.98 * run.get(k, v) + 0.02 * v
-        if bar is not None:
-            bar.update(1)
-            bar.set_postfix(loss=f"{run['total']:.3f}", end=f"{run['end']:.3f}",
-                            jt=f"{run['jt']:.3f}")
-        if bar is None and step % 25 == 0:
-            log.info("step %d loss %.4f (end %.4f art %.4f jt %.4f cs %.4f)", step, run["total"],
-                     run["end"], run["art"], run["jt"], run["cs"])
-        if step % tc.val_every == 0 or step == tc.max_steps:
-            rec = {"step": step, "train": dict(run),
-                   "time_min": (elapsed_before + time.time() - t_loop) / 60}
-            if va:
-                rec["val"] = evaluate_loss(net, va, data.geo_shape, text_cache, tc, tc.val_batches,
-                                           label_cs=label_cs)
-            history.append(rec)
-            log.info("step %d train %.4f val %s", step, run["total"],
-                     f"{rec['val']['total']:.4f}" if va else "-")
-            if bar is not None:
-                bar.write(f"step {step}: train {run['total']:.4f}"
-                          + (f"  val {rec['val']['total']:.4f}" if va else ""))
-        if step % tc.ckpt_every == 0:
-            save(last)
-    if bar is not None:
-        bar.close()
-    final = {"step": step, "train": dict(run),
-             "time_min": (elapsed_before + time.time() - t_loop) / 60}
-    if va:
-        final["val"] = evaluate_loss(net, va, data.geo_shape, text_cache, tc, tc.val_batches,
-                                     label_cs=label_cs)
-    history.append(final)
-    save(last)
-    save(out / "transformer.pt", final=True)
-    (out / "history.json").write_text(json.dumps(history, indent=1))
-    log.info("done: %d steps in %.1f min", step, (time.time() - t_start) / 60)
+        _, L = model(batch, cond, cmask, "text", drop=drop, cond_index=idx, targets=targets,
+                     weights=asdict(tc))
+        return L["total"], {k: float(v.detach()) for k, v in L.items() if k in ("end", "art", "jt", "cs")}
+
+    def val_fn():
+        return evaluate_loss(net, va, data.geo_shape, text_cache, tc, tc.val_batches,
+                             label_cs=label_cs) if va else None
+
+    st = train_loop(net, opt, loop_config(tc, "train transformer", rc.progress, out), step_fn,
+                    val_fn=val_fn, save_fn=save, state=state, dist=dist, unused_params=True)
+    dist.close()
+    log.info("done: %d steps in %.1f min", st.step, (time.time() - t_start) / 60)
     return out / "transformer.pt"
 
 

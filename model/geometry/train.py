@@ -1,12 +1,11 @@
 """Training of the SDF auto-encoder and of the diffusion prior.
 
-Single process by default; under ``torchrun --nproc_per_node N`` (RANK / WORLD_SIZE set) the
-model is wrapped in DistributedDataParallel over gloo (CPU), every rank draws its own random
-batches, rank 0 validates, logs and writes checkpoints. Resumable from ``OUT/ckpt.pt``.
+Both run on the shared loop (model.core.training): single process by default; under
+``torchrun --nproc_per_node N`` DDP over gloo (CPU), every rank draws its own random batches,
+rank 0 validates, logs (OUT/log.jsonl) and writes checkpoints. Resumable from ``OUT/ckpt.pt``.
 """
 from __future__ import annotations
 
-import json
 import logging
 import math
 import os
@@ -16,6 +15,8 @@ from pathlib import Path
 from typing import Optional
 
 import torch
+
+from model.core.training import Dist, LoopConfig, LoopState, train_loop
 
 from .checkpoint import CheckpointError, load_checkpoint, read_checkpoint, save_checkpoint
 from .config import TrainConfig, get_preset
@@ -40,47 +41,7 @@ class RunArgs:
     n_codebooks: Optional[int] = None    # prior only: codebook layout override (the
     codebook_size: Optional[int] = None  # one_codebook ablation: 1 x 512)
     argv: tuple[str, ...] = ()
-
-
-class Dist:
-    """torchrun environment (or a single process)."""
-
-    def __init__(self):
-        self.world = int(os.environ.get("WORLD_SIZE", "1"))
-        self.rank = int(os.environ.get("RANK", "0"))
-        self.active = self.world > 1
-        if self.active:
-            import torch.distributed as dist
-            if not dist.is_initialized():
-                dist.init_process_group("gloo")
-
-    @property
-    def main(self) -> bool:
-        return self.rank == 0
-
-    def wrap(self, model: torch.nn.Module) -> torch.nn.Module:
-        if not self.active:
-            return model
-        from torch.nn.parallel import DistributedDataParallel
-        return DistributedDataParallel(model)
-
-    def barrier(self) -> None:
-        if self.active:
-            import torch.distributed as dist
-            dist.barrier()
-
-    def close(self) -> None:
-        if self.active:
-            import torch.distributed as dist
-            dist.destroy_process_group()
-
-
-def lr_at(step: int, tcfg: TrainConfig) -> float:
-    """Linear warm-up then cosine decay to 5 % of the peak."""
-    if step < tcfg.warmup:
-        return tcfg.lr * (step + 1) / tcfg.warmup
-    p = (step - tcfg.warmup) / max(1, tcfg.steps - tcfg.warmup)
-    return tcfg.lr * (0.05 + 0.95 * 0.5 * (1 + math.cos(math.pi * min(1.0, p))))
+    minutes: float = 0.0                 # wall-clock budget over resumes (0 = none)
 
 
 def _train_cfg(base: TrainConfig, args: RunArgs, n_items: int, world: int) -> TrainConfig:
@@ -99,68 +60,37 @@ def _train_cfg(base: TrainConfig, args: RunArgs, n_items: int, world: int) -> Tr
     return t
 
 
-def _append_log(out: Path, row: dict) -> None:
-    with open(out / "log.jsonl", "a") as f:
-        f.write(json.dumps(row) + "\n")
-
-
-def _resume(path: Path, kind: str, cfg, model, opt, dist: Dist) -> int:
+def _resume(path: Path, kind: str, model, opt, dist: Dist):
+    """Where a resumed run stands (None without OUT/ckpt.pt)."""
     if not path.exists():
-        return 0
-    src, ckpt = load_checkpoint(path, kind, expect_config=cfg)
+        return None
+    src, ckpt = load_checkpoint(path, kind, expect_config=model.cfg)
     model.load_state_dict(src.state_dict())
     if "optimizer" in ckpt:
         opt.load_state_dict(ckpt["optimizer"])
     if dist.main:
         log.info("resumed %s from %s at step %d", kind, path, ckpt["step"])
-    return int(ckpt["step"])
+    return LoopState.of(ckpt)
 
 
 def _loop(kind: str, args: RunArgs, model, tcfg: TrainConfig, batch_fn, val_fn, dist: Dist,
           out: Path, save_fn) -> dict:
-    """The shared optimisation loop. batch_fn(gen) -> loss, stats; val_fn() -> float."""
+    """Both stages on the shared loop (model.core.training). batch_fn(net, gen) -> loss,
+    stats; val_fn() -> float; save_fn(path, step, opt, run) writes OUT/ckpt.pt."""
     opt = torch.optim.AdamW(model.parameters(), lr=tcfg.lr, weight_decay=tcfg.weight_decay)
-    start = _resume(out / "ckpt.pt", kind, model.cfg, model, opt, dist) if args.resume else 0
-    net = dist.wrap(model)
+    state = _resume(out / "ckpt.pt", kind, model, opt, dist) if args.resume else None
+    start = state.step if state is not None else 0
     gen = torch.Generator().manual_seed(args.seed * 1_000_003 + dist.rank * 7919 + start)
-    bar = None
-    if dist.main and args.progress:
-        from tqdm import tqdm
-        bar = tqdm(total=tcfg.steps, initial=start, desc=f"train {kind}", unit="step",
-                   dynamic_ncols=True)
+    cfg = LoopConfig(steps=tcfg.steps, lr=tcfg.lr, warmup=tcfg.warmup, floor=0.05,
+                     minutes=args.minutes, val_every=tcfg.val_every, ckpt_every=tcfg.ckpt_every,
+                     grad_clip=tcfg.grad_clip, progress=args.progress, desc=f"train {kind}",
+                     log_dir=str(out))
     t0 = time.time()
-    last_val = float("nan")
-    step = start
-    for step in range(start, tcfg.steps):
-        net.train()
-        for g in opt.param_groups:
-            g["lr"] = lr_at(step, tcfg)
-        loss, stats = batch_fn(net, gen)  # loss (), stats {name: float}
-        opt.zero_grad(set_to_none=True)
-        loss.backward()
-        if tcfg.grad_clip:
-            torch.nn.utils.clip_grad_norm_(model.parameters(), tcfg.grad_clip)
-        opt.step()
-        loss = loss.detach()
-        done = step + 1
-        if bar is not None:
-            bar.update(1)
-            bar.set_postfix(loss=f"{float(loss):.4f}", **{k: f"{v:.4f}" for k, v in stats.items()})
-        is_val = done % tcfg.val_every == 0 or done == tcfg.steps
-        if is_val and dist.main:
-            model.eval()
-            last_val = float(val_fn())
-            _append_log(out, {"step": done, "loss": float(loss), **stats, "val": last_val,
-                              "lr": lr_at(step, tcfg), "elapsed_s": round(time.time() - t0, 1)})
-            if bar is not None:
-                bar.write(f"step {done}: train {float(loss):.4f}  val {last_val:.4f}")
-        if (done % tcfg.ckpt_every == 0 or done == tcfg.steps) and dist.main:
-            save_fn(out / "ckpt.pt", done, opt)
-        dist.barrier() if is_val else None
-    if bar is not None:
-        bar.close()
-    return {"steps": tcfg.steps, "start": start, "val": last_val,
-            "seconds": round(time.time() - t0, 1)}
+    st = train_loop(model, opt, cfg, lambda net, step: batch_fn(net, gen), val_fn=val_fn,
+                    save_fn=lambda st, final: save_fn(out / "ckpt.pt", st.step, opt, st.entries()),
+                    state=state, dist=dist)
+    last = st.history[-1].get("val", float("nan")) if st.history else float("nan")
+    return {"steps": st.step, "start": start, "val": last, "seconds": round(time.time() - t0, 1)}
 
 
 # -- stage 1: the auto-encoder ------------------------------------------------------------
@@ -205,9 +135,9 @@ def train_sdf(args: RunArgs) -> dict:
             n += s.numel()
         return tot / max(n, 1)
 
-    def save_fn(path, step, opt):
+    def save_fn(path, step, opt, run):
         save_checkpoint(path, "sdf", model, data_version=train.data_version, seed=args.seed,
-                        argv=list(args.argv), step=step, optimizer=opt, train_cfg=tcfg,
+                        argv=list(args.argv), step=step, optimizer=opt, train_cfg=tcfg, run=run,
                         extra={"data": str(args.data), "train_parts": len(train)})
 
     res = _loop("sdf", args, model, tcfg, batch_fn, val_fn, dist, out, save_fn)
@@ -295,9 +225,9 @@ def train_prior(args: RunArgs) -> dict:
             "texts": list(train.text_vocab), "object_ids": list(train.object_ids),
             "part_index": list(train.part_index)}
 
-    def save_fn(path, step, opt):
+    def save_fn(path, step, opt, run):
         save_checkpoint(path, "prior", model, data_version=train.data_version, seed=args.seed,
-                        argv=list(args.argv), step=step, optimizer=opt, train_cfg=tcfg,
+                        argv=list(args.argv), step=step, optimizer=opt, train_cfg=tcfg, run=run,
                         extra={"data": str(args.data), "sdf_checkpoint": str(args.sdf),
                                "sdf_config": ae_ckpt["config"], "bank": bank})
 

@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import argparse
+import json
 import logging
 import sys
+from pathlib import Path
 
 
 def _render(argv: list[str]) -> int:
@@ -105,6 +107,167 @@ def _features(argv: list[str]) -> int:
     return 0
 
 
+def _image_eval_args(ap: argparse.ArgumentParser) -> None:
+    """The --eval options of `artformer train image`."""
+    ap.add_argument("--eval", metavar="CKPT", help="category / structure accuracy of CKPT on --split")
+    ap.add_argument("--split", default="test")
+    ap.add_argument("--pipeline", type=int, metavar="N", default=0,
+                    help="--eval: instead, run N test images through the whole generator "
+                         "(the --eval folder or 'shipped') and report POR, validity, structure")
+    ap.add_argument("--limit", type=int, default=0)
+    ap.add_argument("--eval-views", default="all", help="--eval: view indices (comma list) or 'all'")
+    ap.add_argument("--eval-seed", type=int, default=0)
+    ap.add_argument("--temperature", type=float, default=1.0)
+    ap.add_argument("--follow-plan", action="store_true",
+                    help="--eval: decode with END decisions held to the START plan head")
+    ap.add_argument("--no-count-plan", action="store_true",
+                    help="--eval: ignore the checkpoint's count head (decode END freely)")
+    ap.add_argument("--oracle-plan", action="store_true",
+                    help="--eval diagnostic: hold END decisions to each object's TRUE part "
+                         "counts (how far count-guided decoding can go)")
+    ap.add_argument("--visibility", action="store_true",
+                    help="--eval: also measure every part's visible pixels in each render and "
+                         "report structure by visibility (by_visibility)")
+    ap.add_argument("--visible-px", type=int, default=16,
+                    help="--visibility: pixels a part needs to count as visible (default 16)")
+    ap.add_argument("--frame", action="store_true",
+                    help="--eval: crop each picture around its object first, as the product "
+                         "does for photos (model.encoders.framing)")
+    ap.add_argument("--farther", type=float, default=1.0, metavar="S",
+                    help="--eval: show each render at S (< 1) of the picture's side, in the "
+                         "middle of a larger picture of its background colour: a photo taken "
+                         "from further away (default 1: the render as it is)")
+
+
+def _image_parser():
+    import argparse
+    ap = argparse.ArgumentParser(
+        prog="artformer train image",
+        description="Train the articulation transformer conditioned on rendered images "
+                    "(EfficientNet-Lite0 tokens), or --eval an image checkpoint on held-out renders.")
+    ap.add_argument("--data", default="data/prepared/v1")
+    ap.add_argument("--renders", default="data/renders/v1")
+    ap.add_argument("--prior", default="model/weights/prior_small.pt",
+                    help="shape-prior checkpoint (P_gt / c_s targets); 'none' = stand-in targets")
+    ap.add_argument("--sdf", default="model/weights/sdf_small.pt")
+    ap.add_argument("--preset", default="small")
+    ap.add_argument("--out", default="runs/image_small")
+    ap.add_argument("--init", default="model/weights/transformer_small.pt",
+                    help="text transformer checkpoint to start from ('none' = from scratch)")
+    ap.add_argument("--trainable-blocks", type=int, default=0, choices=(0, 1),
+                    help="0 = frozen encoder (default), 1 = fine-tune its last block + head")
+    ap.add_argument("--tail-lr-mult", type=float, default=0.1)
+    ap.add_argument("--trunk", metavar="TRUNK_PT",
+                    help="read the features of this fine-tuned trunk (`artformer train "
+                         "image-trunk`); default: the --init image checkpoint's, else ImageNet's")
+    ap.add_argument("--multiscale", action="store_true",
+                    help="tokens also carry the 14x14 block-10 features (1728-d); from a "
+                         "1280-d image checkpoint the projection is widened with zeros")
+    ap.add_argument("--image-size", type=int, default=224, metavar="PX",
+                    help="encoder input side, a multiple of 224 (448: the renders upsampled 2x so "
+                         "small parts cover 4x the feature-map cells; the map entering the last "
+                         "block is pooled back to 7x7); default 224")
+    ap.add_argument("--count-tokens", metavar="TRUNK_PT",
+                    help="add the count head of this trunk file (the run's own trunk) to the "
+                         "condition: one token per label carrying its count distribution")
+    ap.add_argument("--count-truth", type=float, default=0.0, metavar="SHARE",
+                    help="with count tokens: share of training views whose tokens carry the "
+                         "object's true counts instead of the head's (default 0)")
+    ap.add_argument("--no-positions", action="store_true",
+                    help="no 2-D position embedding of the 7x7 image tokens (the earlier model)")
+    ap.add_argument("--extra-train", nargs=2, action="append", default=[],
+                    metavar=("DATA", "RENDERS"),
+                    help="more training objects: a prepared dataset with its own data version "
+                         "and its render set (all its splits train; repeatable)")
+    ap.add_argument("--resume", action="store_true", help="continue from OUT/last.pt")
+    ap.add_argument("--steps", type=int)
+    ap.add_argument("--minutes", type=float)
+    ap.add_argument("--batch-size", type=int)
+    ap.add_argument("--lr", type=float)
+    ap.add_argument("--warmup", type=int, help="override warmup_steps")
+    ap.add_argument("--own-inputs", type=float, metavar="SHARE",
+                    help="scheduled sampling: share of the objects per batch whose nodes carry "
+                         "the network's own articulation predictions (default 0)")
+    ap.add_argument("--seed", type=int)
+    ap.add_argument("--threads", type=int)
+    ap.add_argument("--half", metavar="PATH", help="also write an fp16 copy (the shipped file)")
+    _image_eval_args(ap)
+    ap.add_argument("--json", metavar="PATH")
+    ap.add_argument("--no-progress", action="store_true")
+    return ap
+
+
+def train_image_main(argv: list[str]) -> int:
+    """`artformer train image`."""
+    import shlex
+    args = _image_parser().parse_args(argv)
+    if args.eval and args.pipeline:
+        from .evaluate import image_pipeline_report
+        rep = image_pipeline_report(args.data, args.renders, split=args.split, n=args.pipeline,
+                                    checkpoint=None if args.eval == "shipped" else args.eval,
+                                    seed=args.eval_seed, progress=not args.no_progress)
+        print(json.dumps({k: v for k, v in rep.items() if k != "rows"}, indent=1))
+        if args.json:
+            Path(args.json).parent.mkdir(parents=True, exist_ok=True)
+            Path(args.json).write_text(json.dumps(rep, indent=1))
+        return 0
+    if args.eval:
+        from .evaluate import image_alignment_report
+        if not 0 < args.farther <= 1:
+            print(f"artformer train image: --farther must be in (0, 1], got {args.farther}", flush=True)
+            return 2
+        views = None if args.eval_views == "all" else [int(v) for v in args.eval_views.split(",")]
+        rep = image_alignment_report(args.eval, args.data, args.renders, split=args.split,
+                                     views=views, limit=args.limit, seed=args.eval_seed,
+                                     temperature=args.temperature, follow_plan=args.follow_plan,
+                                     count_plan=not args.no_count_plan,
+                                     oracle_plan=args.oracle_plan, visibility=args.visibility,
+                                     visible_px=args.visible_px, frame=args.frame,
+                                     farther=args.farther, progress=not args.no_progress)
+        print(json.dumps({k: v for k, v in rep.items() if k != "rows"}, indent=1))
+        if args.json:
+            Path(args.json).parent.mkdir(parents=True, exist_ok=True)
+            Path(args.json).write_text(json.dumps(rep, indent=1))
+        return 0
+    from model.articulation.commands import make_targets
+    from model.encoders.image import check_image_size
+
+    from .train import ImageRunConfig, ImageTrainConfig, train_image, write_half
+    from model.articulation.config import preset
+    overrides = {k: v for k, v in {"max_steps": args.steps, "max_minutes": args.minutes,
+                                   "batch_size": args.batch_size, "lr": args.lr,
+                                   "warmup_steps": args.warmup, "own_inputs": args.own_inputs,
+                                   "seed": args.seed, "threads": args.threads}.items()
+                 if v is not None}
+    net_cfg, tc = preset(args.preset, **overrides)
+    targets = make_targets(args.prior, args.sdf, net_cfg)
+    ic = ImageTrainConfig(trainable_blocks=args.trainable_blocks, tail_lr_mult=args.tail_lr_mult,
+                          init=args.init, positions=not args.no_positions,
+                          multiscale=args.multiscale, trunk=args.trunk or "",
+                          image_size=args.image_size, count_tokens=args.count_tokens or "",
+                          count_truth=args.count_truth)
+    try:
+        check_image_size(args.image_size)
+    except ValueError as e:
+        print(f"artformer train image: --image-size: {e}", flush=True)
+        return 2
+    if ic.init.lower() != "none" and not Path(ic.init).exists():
+        print(f"artformer train image: --init {ic.init} does not exist; train the text model "
+              f"first or pass --init none", flush=True)
+        return 2
+    command = "artformer train image " + " ".join(shlex.quote(a) for a in argv)
+    path = train_image(ImageRunConfig(data=args.data, renders=args.renders, out=args.out,
+                                      net=net_cfg, train=tc, image=ic, targets=targets,
+                                      command=command, progress=not args.no_progress,
+                                      resume=args.resume,
+                                      extra=[tuple(x) for x in args.extra_train]))
+    if args.half:
+        write_half(path, Path(args.half))
+        print(f"fp16 copy: {args.half}")
+    print(f"checkpoint: {path}")
+    return 0
+
+
 def main(argv: list[str]) -> int:
     logging.basicConfig(level=logging.INFO, format="%(levelname)s %(name)s: %(message)s")
     words = tuple(argv[:2])
@@ -115,8 +278,7 @@ def main(argv: list[str]) -> int:
     if words == ("data", "features"):
         return _features(argv[2:])
     if words == ("train", "image"):
-        from .train import cli_main
-        return cli_main(argv[2:])
+        return train_image_main(argv[2:])
     if words == ("train", "image-trunk"):
         from .trunk import cli_main
         return cli_main(argv[2:])

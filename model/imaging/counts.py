@@ -29,7 +29,6 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Optional
 
-import numpy as np
 import torch
 from torch import nn
 from torch.nn import functional as F
@@ -127,6 +126,33 @@ def count_token_entry(trunk: dict, path: str = "") -> dict:
             "trunk_tag": trunk.get("tag"), "source": str(path)}
 
 
+def count_tokens_for(ic, init: Optional[dict], trunk: Optional[dict], cfg, split: int):
+    """The count head whose distributions a run adds as count tokens, and its checkpoint entry:
+    ``--count-tokens TRUNK_PT``'s head (it must read this run's trunk), else the init image
+    checkpoint's; (None, None) without either."""
+    entry = None
+    if ic.count_tokens:
+        from .trunk import load_trunk
+        src = load_trunk(ic.count_tokens)
+        if trunk is None or src.get("tag") != trunk.get("tag"):
+            raise ValueError(f"--count-tokens {ic.count_tokens}: its count head reads trunk "
+                             f"{src.get('tag')}, this run's features are those of "
+                             f"{None if trunk is None else trunk.get('tag')}")
+        entry = count_token_entry(src, ic.count_tokens)
+    elif init is not None and init.get("count_tokens"):
+        entry = init["count_tokens"]
+    if entry is None:
+        return None, None
+    try:
+        head = load_count_head(entry, list(cfg.count_labels or []))
+    except CountHeadError as e:
+        raise ValueError(f"count tokens: {e}") from e
+    if head.cfg.split != split:
+        raise ValueError(f"count tokens: the head reads block {head.cfg.split}, the feature cache "
+                         f"holds block {split}")
+    return head, entry
+
+
 def count_token_shape(head: CountHead) -> tuple[int, int]:
     """(labels, classes) of a count head's distributions: the shape of its count tokens'
     entry in ``ArticulationConfig.count_tokens``."""
@@ -196,19 +222,42 @@ def exact_counts(head: CountHead, X: torch.Tensor, Y: torch.Tensor, batch: int =
             "loss": loss / (n * Y.shape[1])}
 
 
+def _count_sets(data_root, render_root, extra, labels: list, max_count: int):
+    """Cached features and count targets: train (+ every split of the extra sets) and val.
+    -> X train (N, K, C, 7, 7), Y train, X val, Y val, data versions."""
+    from model.data import format as fmt
+
+    def load(root, rroot, splits):
+        ids = [i for s in splits for i in fmt.split_ids(root, s)]
+        ids, X = _split_features(rroot, ids)
+        Y = count_targets([fmt.load_record(root, i) for i in ids], labels, max_count)
+        return X, Y, fmt.load_manifest(root).get("data_version", "?")
+
+    sets = [load(data_root, render_root, ("train",))]
+    for droot, rroot in extra or []:
+        sets.append(load(droot, rroot, ("train", "val", "test")))
+        if sets[-1][0].shape[1:] != sets[0][0].shape[1:]:
+            raise ValueError(f"{rroot}: features {tuple(sets[-1][0].shape[1:])} differ from "
+                             f"{render_root}'s {tuple(sets[0][0].shape[1:])}")
+    Xs, Ys, versions = (list(col) for col in zip(*sets))
+    if len(set(versions)) < len(versions):
+        raise ValueError(f"training sets share a data version {versions}; extra objects need their own")
+    Xva, Yva, _ = load(data_root, render_root, ("val",))
+    return torch.cat(Xs), torch.cat(Ys), Xva, Yva, versions
+
+
 def train_count_head(image_ckpt: str, data_root: str, render_root: str, out: str, *,
                      extra: Optional[list] = None, tc: Optional[CountTrainConfig] = None,
-                     command: str = "", half: bool = True) -> Path:
+                     command: str = "", half: bool = True, progress: bool = True) -> Path:
     """Train a count head for ``image_ckpt`` on the rendered train objects of ``data_root``
     (+ every split of each ``extra`` (data, renders) pair); pick the best of ``tc.evals``
     evaluations on the val renders; write OUT/image.pt (the image checkpoint + the head)."""
     from model.articulation.checkpoint import read_checkpoint, save_dict
-    from model.data import format as fmt
+    from model.core.training import seed_all
 
     tc = tc or CountTrainConfig()
     torch.set_num_threads(max(1, tc.threads))
-    torch.manual_seed(tc.seed)
-    rng = np.random.default_rng(tc.seed)
+    rng = seed_all(tc.seed)
     ck = read_checkpoint(image_ckpt)
     if ck.get("condition") != "image":
         raise CountHeadError(f"{image_ckpt} is not an image checkpoint (`artformer train image`)")
@@ -222,23 +271,8 @@ def train_count_head(image_ckpt: str, data_root: str, render_root: str, out: str
     cfg = CountHeadConfig(labels=labels, max_count=int(ck["config"].get("plan_max_count", 20)))
     t0 = time.time()
 
-    def load(root, rroot, splits):
-        ids = [i for s in splits for i in fmt.split_ids(root, s)]
-        ids, X = _split_features(rroot, ids)
-        Y = count_targets([fmt.load_record(root, i) for i in ids], labels, cfg.max_count)
-        return X, Y, fmt.load_manifest(root).get("data_version", "?")
-
-    sets = [load(data_root, render_root, ("train",))]
-    for droot, rroot in extra or []:
-        sets.append(load(droot, rroot, ("train", "val", "test")))
-        if sets[-1][0].shape[1:] != sets[0][0].shape[1:]:
-            raise ValueError(f"{rroot}: features {tuple(sets[-1][0].shape[1:])} differ from "
-                             f"{render_root}'s {tuple(sets[0][0].shape[1:])}")
-    Xs, Ys, versions = (list(col) for col in zip(*sets))
-    if len(set(versions)) < len(versions):
-        raise ValueError(f"training sets share a data version {versions}; extra objects need their own")
-    Xtr, Ytr = torch.cat(Xs), torch.cat(Ys)
-    Xva, Yva, _ = load(data_root, render_root, ("val",))
+    Xtr, Ytr, Xva, Yva, versions = _count_sets(data_root, render_root, extra, labels,
+                                               cfg.max_count)
     cfg.in_channels = int(Xtr.shape[2])
     cfg.grid = (int(Xtr.shape[3]), int(Xtr.shape[4]))
     N, K = Xtr.shape[:2]
@@ -248,34 +282,31 @@ def train_count_head(image_ckpt: str, data_root: str, render_root: str, out: str
     head = CountHead(cfg)
     opt = torch.optim.AdamW(head.parameters(), lr=tc.lr, weight_decay=tc.weight_decay)
     steps = max(1, tc.epochs * N // tc.batch_size)
-    sched = torch.optim.lr_scheduler.OneCycleLR(opt, tc.lr, total_steps=steps, pct_start=0.1)
-    every = max(1, steps // max(1, tc.evals))
-    best, history, step = None, [], 0
-    t_loop = time.time()
-    head.train()
-    for step in range(1, steps + 1):
+    best, history, last = None, [], {}
+
+    def step_fn(net, step):
         b = torch.from_numpy(rng.integers(0, N, tc.batch_size))
         v = torch.from_numpy(rng.integers(0, K, tc.batch_size))
-        logits = head(Xtr[b, v])
-        loss = F.cross_entropy(logits.transpose(1, 2), Ytr[b])
-        opt.zero_grad(set_to_none=True)
-        loss.backward()
-        opt.step()
-        sched.step()
-        over = tc.minutes and time.time() - t_loop > tc.minutes * 60
-        if step % every == 0 or step == steps or over:
-            ev = exact_counts(head, Xva, Yva) if len(Xva) else {"exact": float("nan"), "loss": float("nan")}
-            rec = {"step": step, "train_loss": loss.item(), "val_exact": ev["exact"],
-                   "val_loss": ev["loss"], "minutes": (time.time() - t_loop) / 60}
-            history.append(rec)
-            log.info("count head step %d/%d loss %.4f val exact %.4f val loss %.4f", step, steps,
-                     rec["train_loss"], ev["exact"], ev["loss"])
-            if best is None or (ev["exact"], -ev["loss"]) > (best[0]["val_exact"], -best[0]["val_loss"]):
-                best = (rec, {k: v.detach().clone() for k, v in head.state_dict().items()},
-                        ev.get("per_label"))
-        if over:
-            log.info("count head: wall-clock budget of %.1f min reached at step %d", tc.minutes, step)
-            break
+        loss = F.cross_entropy(net(Xtr[b, v]).transpose(1, 2), Ytr[b])
+        last.update(step=step + 1, loss=loss.item())
+        return loss, {}
+
+    def val_fn():
+        nonlocal best
+        ev = exact_counts(head, Xva, Yva) if len(Xva) else {"exact": float("nan"), "loss": float("nan")}
+        rec = {"step": last["step"], "train_loss": last["loss"], "val_exact": ev["exact"],
+               "val_loss": ev["loss"], "minutes": (time.time() - t0) / 60}
+        history.append(rec)
+        if best is None or (ev["exact"], -ev["loss"]) > (best[0]["val_exact"], -best[0]["val_loss"]):
+            best = (rec, {k: v.detach().clone() for k, v in head.state_dict().items()},
+                    ev.get("per_label"))
+        return {"exact": ev["exact"], "loss": ev["loss"]}
+
+    from model.core.training import LoopConfig, train_loop
+    train_loop(head, opt, LoopConfig(steps=steps, lr=tc.lr, warmup=max(1, steps // 10), floor=0.0,
+                                     minutes=tc.minutes, val_every=max(1, steps // max(1, tc.evals)),
+                                     progress=progress, desc="train image-counts"),
+               step_fn, val_fn=val_fn)
     rec, state, per_label = best
     if half:
         state = half_state(state)

@@ -1,22 +1,16 @@
 """Training of the image-conditioned articulation transformer (`artformer train image`).
 
-The network is the articulation transformer itself (model.articulation): its condition
-interface takes any tokens (B, L, D) + mask with a per-modality input projection, and the
-image modality (D = 1280) is already part of every config. This module supplies the
-condition: for every training sample (object, decoding round) one random rendered view of the
-object, through the EfficientNet-Lite0 tail over cached trunk features (model.imaging.features).
+The network is the articulation transformer itself (model.articulation) with the image
+modality of its condition interface. For every training sample (object, decoding round) the
+condition is one random rendered view through the EfficientNet-Lite0 tail over cached trunk
+features (model.imaging.features): with a frozen encoder (``trainable_blocks = 0``) every
+view's tokens are computed once at start; with ``trainable_blocks = 1`` the last block + head
+conv train too (learning rate × ``tail_lr_mult``). By default a run starts from the trained
+text model (same config, normalisation and label table; only the image projection is new).
+It runs on the shared loop (model.core.training): resumable, wall-clock budget, DDP.
 
-* frozen encoder (``trainable_blocks = 0``): the 49 × 1280 tokens of every view are computed
-  once at start (fp16, in memory), a step costs what a text step costs;
-* light fine-tuning (``trainable_blocks = 1``): the last MBConv block + head conv train with
-  the transformer (learning rate × ``tail_lr_mult``), the tail runs every step.
-
-By default the run starts from the trained text model (same config, normalisation and label
-table; only the image projection is new), which shortens training a lot on a CPU.
-
-A checkpoint is an articulation checkpoint (model.articulation.checkpoint) with extra keys:
-``condition = "image"``, ``image_encoder = {"config": ..., "tail": fine-tuned weights}``,
-``renders`` (render-set manifest), ``init`` (the text checkpoint it started from).
+A checkpoint is an articulation checkpoint with ``condition = "image"``, ``image_encoder``
+(config, fine-tuned tail and trunk), ``renders`` (render-set manifest) and ``init``.
 """
 from __future__ import annotations
 
@@ -31,9 +25,10 @@ import numpy as np
 import torch
 
 from model.core.state import half_state
-from model.encoders.image import NUM_TOKENS, check_image_size
+from model.encoders.image import NUM_TOKENS
 
-from .counts import count_token_shape
+from .counts import count_token_shape, count_tokens_for
+from .trunk import trunk_entry, trunk_for_run
 
 log = logging.getLogger(__name__)
 
@@ -73,6 +68,7 @@ class ImageRunConfig:
     # more training objects: (prepared data, its render set) pairs; every split of them is
     # used for training (validation and the held-out test stay those of ``data``)
     extra: list = field(default_factory=list)
+    resume: bool = False           # continue from OUT/last.pt
 
 
 class ImageConditions:
@@ -203,14 +199,6 @@ def _extra_items(rc: "ImageRunConfig", data, targets, predict_z: bool, cache_dir
     return out, info
 
 
-def _init_from(path: str):
-    from model.articulation.checkpoint import read_checkpoint
-    ck = read_checkpoint(path)
-    if ck.get("condition") == "image":
-        log.info("initialising from image checkpoint %s", path)
-    return ck
-
-
 def widen_image_projection(sd: dict, own: dict, key: str = "cond.proj.image.0.weight") -> bool:
     """A start checkpoint with 1280-d image tokens, a multiscale network with wider ones: keep
     the learned columns and add zero columns for the new channels, so the network starts
@@ -226,50 +214,38 @@ def widen_image_projection(sd: dict, own: dict, key: str = "cond.proj.image.0.we
     return True
 
 
-def train_image(rc: ImageRunConfig) -> Path:
-    """Train an image-conditioned model in ``rc.out``; returns the path of image.pt."""
-    from model.articulation.checkpoint import save_checkpoint
+def _network_config(rc: ImageRunConfig, init: Optional[dict]):
+    """The network config of a run: the init checkpoint's (its heads follow this run's targets
+    when it was trained on others) or ``rc.net``. -> (config, same targets as init)."""
     from model.articulation.config import ArticulationConfig
-    from model.articulation.network import ArticulationTransformer
-    from model.articulation.data import group_rounds
-    from model.articulation.train import (_CodebookView, label_cs_normalised, lr_at,
-                                          own_input_tokens, prepare_data)
-    from model.encoders.image import FINE_SPLIT, GRID, ImageEncoder, ImageEncoderConfig
-
-    from .features import IMAGENET, ViewFeatures, build_feature_cache, encoder_cache_args
-    from .renders import load_render_manifest, rendered_ids
-
-    tc, ic = rc.train, rc.image
-    if ic.trainable_blocks not in (0, 1):
-        raise ValueError("the feature cache serves trainable_blocks 0 or 1")
-    torch.set_num_threads(max(1, tc.threads))
-    out = Path(rc.out)
-    out.mkdir(parents=True, exist_ok=True)
-    t_start = time.time()
-    init = None
-    tg = rc.targets
-    same_targets = True
-    if ic.init and ic.init.lower() != "none":
-        init = _init_from(ic.init)
+    tc, tg = rc.train, rc.targets
+    if init is None:
+        cfg, same = rc.net, False
+    else:
         cfg = ArticulationConfig.from_dict(init["config"])
         tc.text_encoder = init.get("text_encoder") or tc.text_encoder
-        # a start checkpoint trained on other targets (e.g. stand-ins before the prior existed)
-        # keeps its trunk; c_s / codebook heads and the label table follow the new targets
-        same_targets = init.get("targets") == getattr(tg, "name", None) and \
+        # a start checkpoint trained on other targets (stand-ins, or another shape prior: see
+        # model.core.checkpoint.check_prior) keeps its trunk; c_s / codebook heads and the
+        # label table follow the new targets
+        same = init.get("prior") == getattr(tg, "fingerprint", None) and \
             int(tg.cs_dim) == cfg.cs_dim and int(tg.num_codebooks) == cfg.num_codebooks and \
             int(tg.codebook_size) == cfg.codebook_size
-        if not same_targets:
-            log.warning("init %s was trained on %r targets, this run uses %r: its label table "
-                        "is rebuilt and mismatched heads are re-initialised", ic.init,
-                        init.get("targets"), getattr(tg, "name", None))
-    else:
-        cfg = rc.net
-    if init is None or not same_targets:
+        if not same:
+            log.warning("init %s was trained on other targets (prior %r) than this run's (%r): "
+                        "its label table is rebuilt and mismatched heads are re-initialised",
+                        rc.image.init, init.get("prior"), getattr(tg, "fingerprint", None))
+    if not same:
         cfg.cs_dim = int(tg.cs_dim)
         cfg.num_codebooks, cfg.codebook_size = int(tg.num_codebooks), int(tg.codebook_size)
+    return cfg, same
+
+
+def _encoder_for(ic: ImageTrainConfig, init: Optional[dict], cfg):
+    """The image encoder of a run, with its fine-tuned trunk; sets the config's image entries."""
+    from model.encoders.image import GRID, ImageEncoder, ImageEncoderConfig
     encoder = ImageEncoder(ImageEncoderConfig(trainable_blocks=ic.trainable_blocks,
                                               multiscale=ic.multiscale, image_size=ic.image_size))
-    trunk = _trunk_for(ic, init)
+    trunk = trunk_for_run(ic, init)
     has_tokens = bool(ic.count_tokens or (init or {}).get("count_tokens"))
     if ic.count_truth and (not has_tokens or not 0 < ic.count_truth <= 1):   # before any loading
         raise ValueError("count_truth needs count tokens (--count-tokens or an init checkpoint "
@@ -282,15 +258,20 @@ def train_image(rc: ImageRunConfig) -> Path:
         cfg.cond_dims = {**cfg.cond_dims, "image": encoder.dim}
     grid = {k: v for k, v in cfg.cond_grid.items() if k != "image"}
     cfg.cond_grid = {**grid, "image": list(GRID)} if ic.positions else grid
+    return encoder, trunk
+
+
+def _rendered_items(rc: ImageRunConfig, cfg, init: Optional[dict], same: bool, out: Path):
+    """Prepared items of the rendered objects. -> data, train items, val items, extra sets,
+    their record."""
+    from model.articulation.train import _CodebookView, prepare_data
+    from .renders import rendered_ids
     view = _CodebookView(rc.targets, cfg)
-    data = prepare_data(rc.data, view, predict_z=cfg.predict_z,
-                        cache_dir=str(out / "cache"),
+    data = prepare_data(rc.data, view, predict_z=cfg.predict_z, cache_dir=str(out / "cache"),
                         stats=None if init is None else init["stats"],
-                        label_table=None if init is None or not same_targets else init["label_table"])
-    rmanifest = load_render_manifest(rc.renders)
+                        label_table=None if init is None or not same else init["label_table"])
     tr_all, va_all = data.items["train"], data.items.get("val") or []
-    ids = [it.id for it in tr_all + va_all]
-    have = set(rendered_ids(rc.renders, ids))
+    have = set(rendered_ids(rc.renders, [it.id for it in tr_all + va_all]))
     tr = [it for it in tr_all if it.id in have]
     va = [it for it in va_all if it.id in have]
     if not tr:
@@ -300,8 +281,15 @@ def train_image(rc: ImageRunConfig) -> Path:
         log.warning("%d of %d train objects have no renders and are skipped",
                     len(tr_all) - len(tr), len(tr_all))
     extra, extra_info = _extra_items(rc, data, view, cfg.predict_z, out / "cache")
-    t0 = time.time()
+    return data, tr, va, extra, extra_info
 
+
+def _view_features(rc: ImageRunConfig, encoder, trunk, tr: list, va: list, extra: list):
+    """Cached trunk features of every view (merged over the extra render sets; extra items
+    join ``tr``). -> train items, features, fine features or None."""
+    from model.encoders.image import FINE_SPLIT
+    from .features import IMAGENET, ViewFeatures, build_feature_cache, encoder_cache_args
+    ic = rc.image
     enc_kw = encoder_cache_args(encoder, IMAGENET if trunk is None else trunk["tag"])
 
     def features(root, ids, split=None):
@@ -310,33 +298,24 @@ def train_image(rc: ImageRunConfig) -> Path:
 
     feats = features(rc.renders, [it.id for it in tr + va])
     fine = features(rc.renders, list(feats.index), FINE_SPLIT) if ic.multiscale else None
-    if extra:
-        n0 = len(tr)
-        fparts, gparts = [("", feats)], [("", fine)]
-        for prefix, rroot, items in extra:
-            xf = features(rroot, [it.id[len(prefix):] for it in items])
-            fparts.append((prefix, xf))
-            if ic.multiscale:
-                gparts.append((prefix, features(rroot, list(xf.ids), FINE_SPLIT)))
-            tr = tr + items
-        feats = merge_view_features(fparts)
-        fine = merge_view_features(gparts) if ic.multiscale else None
-        del fparts, gparts, xf       # the merged copies hold them: free the GBs of the parts
-        log.info("extra training objects: %d (%s)", len(tr) - n0,
-                 ", ".join(f"{x['data_version']}: {x['objects']}" for x in extra_info))
-    t_feats = time.time() - t0
-    if cfg.child_counts and not cfg.count_labels:
-        cfg.count_labels = sorted(set(data.label_table["labels"]))
-    counter, counter_entry = _count_tokens_for(ic, init, trunk, cfg, feats.split)
-    if counter is not None:
-        cfg.count_tokens = {**cfg.count_tokens, "image": list(count_token_shape(counter))}
-    conds = ImageConditions(feats, encoder, precompute=ic.trainable_blocks == 0, fine=fine,
-                            counter=counter)
-    del fine                         # conds keeps what it still needs (GBs for multiscale)
-    log.info("data %s: %d train / %d val objects x %d views; features %.0f s",
-             data.data_version, len(tr), len(va), feats.views, t_feats)
+    if not extra:
+        return tr, feats, fine
+    fparts, gparts = [("", feats)], [("", fine)]
+    for prefix, rroot, items in extra:
+        xf = features(rroot, [it.id[len(prefix):] for it in items])
+        fparts.append((prefix, xf))
+        if ic.multiscale:
+            gparts.append((prefix, features(rroot, list(xf.ids), FINE_SPLIT)))
+        tr = tr + items
+    feats = merge_view_features(fparts)
+    fine = merge_view_features(gparts) if ic.multiscale else None
+    return tr, feats, fine
 
-    torch.manual_seed(tc.seed)
+
+def _image_network(cfg, init: Optional[dict], encoder, seed: int):
+    """The network, from the init checkpoint's weights where they fit."""
+    from model.articulation.network import ArticulationTransformer
+    torch.manual_seed(seed)
     net = ArticulationTransformer(cfg)
     if init is not None:
         sd = {k: v.float() if v.is_floating_point() else v for k, v in init["state_dict"].items()}
@@ -349,57 +328,102 @@ def train_image(rc: ImageRunConfig) -> Path:
         net.load_state_dict({k: v for k, v in sd.items() if k not in skip}, strict=False)
         if init.get("condition") == "image" and init.get("image_encoder", {}).get("tail"):
             encoder.load_tail_state_dict(init["image_encoder"]["tail"])
+    return net
+
+
+def _prepare(rc: ImageRunConfig, out: Path):
+    """Everything a run trains on. -> dict of config, init, encoder, trunk, data, items,
+    features, conditions, count head and records."""
+    from model.articulation.checkpoint import read_checkpoint
+    from .renders import load_render_manifest
+    ic = rc.image
+    init = read_checkpoint(ic.init) if ic.init and ic.init.lower() != "none" else None
+    cfg, same = _network_config(rc, init)
+    encoder, trunk = _encoder_for(ic, init, cfg)
+    data, tr, va, extra, extra_info = _rendered_items(rc, cfg, init, same, out)
+    t0 = time.time()
+    tr, feats, fine = _view_features(rc, encoder, trunk, tr, va, extra)
+    t_feats = time.time() - t0
+    if cfg.child_counts and not cfg.count_labels:
+        cfg.count_labels = sorted(set(data.label_table["labels"]))
+    counter, counter_entry = count_tokens_for(ic, init, trunk, cfg, feats.split)
+    if counter is not None:
+        cfg.count_tokens = {**cfg.count_tokens, "image": list(count_token_shape(counter))}
+    conds = ImageConditions(feats, encoder, precompute=ic.trainable_blocks == 0, fine=fine,
+                            counter=counter)
+    log.info("data %s: %d train / %d val objects x %d views; features %.0f s",
+             data.data_version, len(tr), len(va), feats.views, t_feats)
+    rman = load_render_manifest(rc.renders)
+    render_info = {k: rman.get(k) for k in ("render_version", "views", "size", "seed",
+                                            "data_version")}
+    render_info["path"] = str(rc.renders)
+    return dict(cfg=cfg, init=init, encoder=encoder, trunk=trunk, data=data, tr=tr, va=va,
+                views=feats.views, conds=conds, counter=counter, counter_entry=counter_entry,
+                extra_info=extra_info, render_info=render_info, t_feats=t_feats)
+
+
+def _resume_image(last: Path, net, encoder, opt, prior: str):
+    from model.articulation.checkpoint import read_checkpoint
+    from model.core.training import LoopState
+    ck = read_checkpoint(last, prior=prior)
+    if ck["config"] != asdict(net.cfg):
+        raise ValueError(f"{last} was trained with another config; drop --resume or use "
+                         f"another --out")
+    net.load_state_dict(ck["state_dict"])
+    if ck.get("image_encoder", {}).get("tail"):
+        encoder.load_tail_state_dict(ck["image_encoder"]["tail"])
+    opt.load_state_dict(ck["optimizer"])
+    log.info("resumed %s at step %d", last, ck["step"])
+    return LoopState.of(ck)
+
+
+def train_image(rc: ImageRunConfig) -> Path:
+    """Train (or resume) an image-conditioned model in ``rc.out``; returns image.pt. Under
+    torchrun every process trains on its share of each epoch's batches (DDP; frozen encoder)."""
+    from model.articulation.data import group_rounds
+    from model.articulation.train import label_cs_normalised, loop_config, own_input_tokens
+    from model.core.training import Dist, train_loop
+    tc, ic = rc.train, rc.image
+    if ic.trainable_blocks not in (0, 1):
+        raise ValueError("the feature cache serves trainable_blocks 0 or 1")
+    dist = Dist()
+    if dist.active and ic.trainable_blocks:
+        raise ValueError("DDP (torchrun) trains the image model with a frozen encoder only; "
+                         "use --trainable-blocks 0 or one process")
+    torch.set_num_threads(max(1, tc.threads))
+    out = Path(rc.out)
+    out.mkdir(parents=True, exist_ok=True)
+    t_start = time.time()
+    if not dist.main:
+        dist.barrier()                       # rank 0 builds the caches first
+    p = _prepare(rc, out)
+    if dist.main:
+        dist.barrier()
+    cfg, encoder, data, tr, conds = p["cfg"], p["encoder"], p["data"], p["tr"], p["conds"]
+    net = _image_network(cfg, p["init"], encoder, tc.seed)
     groups = [{"params": list(net.parameters()), "lr_mult": 1.0}]
     tail = encoder.tail_parameters()
     if tail:
         groups.append({"params": tail, "lr_mult": ic.tail_lr_mult})
     opt = torch.optim.AdamW(groups, lr=tc.lr, weight_decay=tc.weight_decay, betas=(0.9, 0.98))
-    rng = np.random.default_rng(tc.seed)
-    history: list[dict] = []
-    render_info = {k: rmanifest.get(k) for k in ("render_version", "views", "size", "seed",
-                                                   "data_version")}
-    render_info["path"] = str(rc.renders)
-
-    def save(path: Path, step: int, half: bool = False) -> None:
-        tail_sd = encoder.tail_state_dict()
-        if half:
-            tail_sd = half_state(tail_sd)
-        extra = {"condition": "image", "targets": getattr(rc.targets, "name", "?"),
-                 "image_encoder": {"config": asdict(encoder.config), "tail": tail_sd,
-                                   **_trunk_entry(trunk)},
-                 "image_train_config": asdict(ic), "renders": render_info,
-                 **({"count_tokens": counter_entry} if counter_entry else {}),
-                 "extra_train": extra_info,
-                 "init": ic.init if init is not None else "none",
-                 "elapsed": time.time() - t_loop, "history": history, "ablation": "none"}
-        save_checkpoint(path, net, stats=data.stats, label_table=data.label_table,
-                        text_encoder=tc.text_encoder, data_version=data.data_version,
-                        seed=tc.seed, command=rc.command, step=step, train_config=asdict(tc),
-                        extra=extra, half=half)
-
+    prior = getattr(rc.targets, "fingerprint", "")
+    state = None
+    if rc.resume and (out / "last.pt").exists():
+        state = _resume_image(out / "last.pt", net, encoder, opt, prior)
+    seed = tc.seed if state is None else tc.seed + state.step
+    order = np.random.default_rng(seed)
+    rng = np.random.default_rng([seed, dist.rank]) if dist.active else order
+    save = _saver(rc, p, net, opt, out, prior)
     label_cs = label_cs_normalised(data)
-    epoch: list = []
-    net.train()
-    encoder.train()
-    budget = tc.max_minutes * 60.0
-    bar = None
-    if rc.progress:
-        from tqdm import tqdm
-        bar = tqdm(total=tc.max_steps, desc="train image", unit="step")
-    run: dict[str, float] = {}
-    step = 0
-    t_loop = time.time()
-    val_batches = tc.val_batches
-    while step < tc.max_steps:
-        elapsed = time.time() - t_loop
-        if budget and elapsed > budget:
-            log.info("wall-clock budget of %.1f min reached at step %d", tc.max_minutes, step)
-            break
+    counter, epoch = p["counter"], []
+
+    def step_fn(model, step):
+        nonlocal epoch
         if not epoch:
-            epoch = group_rounds(tr, rng.permutation(len(tr)), tc.batch_size,
-                                 tc.rounds_per_object, rng)
+            epoch = dist.shard(group_rounds(tr, order.permutation(len(tr)), tc.batch_size,
+                                            tc.rounds_per_object, order))
         groups = epoch.pop()
-        views = rng.integers(0, feats.views, len(groups)).tolist()
+        views = rng.integers(0, p["views"], len(groups)).tolist()
         batch, targets, cond, cmask, idx = _image_batch(tr, groups, views, data.geo_shape, conds,
                                                         label_cs, cfg.count_labels)
         if counter is not None and ic.count_truth > 0:
@@ -409,104 +433,52 @@ def train_image(rc: ImageRunConfig) -> Path:
         if tc.own_inputs > 0:   # scheduled sampling, as in text training
             own_input_tokens(net, tr, groups, batch, cond, cmask, "image", tc.own_inputs, rng,
                              data.geo_shape)
-        for g in opt.param_groups:
-            g["lr"] = lr_at(step, tc, elapsed) * g["lr_mult"]
-        _, L = net(batch, cond, cmask, "image", drop=drop, cond_index=idx, targets=targets,
-                   weights=asdict(tc))
-        opt.zero_grad(set_to_none=True)
-        L["total"].backward()
-        torch.nn.utils.clip_grad_norm_(net.parameters(), tc.grad_clip)
-        if tail:
-            torch.nn.utils.clip_grad_norm_(tail, tc.grad_clip)
-        opt.step()
-        step += 1
-        for k, v in L.items():
-            v = float(v.detach())
-            run[k] = 0.98 * run.get(k, v) + 0.02 * v
-        if bar is not None:
-            bar.update(1)
-            bar.set_postfix(loss=f"{run['total']:.3f}", end=f"{run['end']:.3f}")
-        elif step % 25 == 0:
-            log.info("step %d loss %.4f (end %.4f art %.4f jt %.4f cs %.4f)", step, run["total"],
-                     run["end"], run["art"], run["jt"], run["cs"])
-        if step % tc.val_every == 0:
-            rec = {"step": step, "train": dict(run), "time_min": (time.time() - t_loop) / 60}
-            if va:
-                rec["val"] = evaluate_image_loss(net, va, data.geo_shape, conds, tc, val_batches,
-                                                 label_cs=label_cs)
-            history.append(rec)
-            log.info("step %d train %.4f val %s", step, run["total"],
-                     f"{rec['val']['total']:.4f}" if va else "-")
-        if step % tc.ckpt_every == 0:
-            save(out / "last.pt", step)
-    if bar is not None:
-        bar.close()
-    final = {"step": step, "train": dict(run), "time_min": (time.time() - t_loop) / 60}
-    if va:
-        final["val"] = evaluate_image_loss(net, va, data.geo_shape, conds, tc, val_batches,
-                                           label_cs=label_cs)
-    history.append(final)
-    save(out / "last.pt", step)
-    save(out / "image.pt", step)
-    summary = {"steps": step, "train_minutes": (time.time() - t_loop) / 60,
-               "total_minutes": (time.time() - t_start) / 60, "feature_seconds": t_feats,
-               "train_objects": len(tr), "val_objects": len(va), "views": feats.views,
-               "extra_train": extra_info,
-               "trainable_blocks": ic.trainable_blocks, "final": final}
-    (out / "history.json").write_text(json.dumps(history, indent=1))
-    (out / "summary.json").write_text(json.dumps(summary, indent=1))
-    log.info("done: %d steps in %.1f min", step, (time.time() - t_start) / 60)
+        _, L = model(batch, cond, cmask, "image", drop=drop, cond_index=idx, targets=targets,
+                     weights=asdict(tc))
+        return L["total"], {k: float(v.detach()) for k, v in L.items() if k in ("end", "art", "jt")}
+
+    def val_fn():
+        return evaluate_image_loss(net, p["va"], data.geo_shape, conds, tc, tc.val_batches,
+                                   label_cs=label_cs) if p["va"] else None
+
+    encoder.train()
+    st = train_loop(net, opt, loop_config(tc, "train image", rc.progress, out), step_fn,
+                    val_fn=val_fn, save_fn=save, state=state, dist=dist, unused_params=True)
+    if dist.main:
+        summary = {"steps": st.step, "train_minutes": st.elapsed / 60,
+                   "total_minutes": (time.time() - t_start) / 60, "feature_seconds": p["t_feats"],
+                   "train_objects": len(tr), "val_objects": len(p["va"]), "views": p["views"],
+                   "extra_train": p["extra_info"], "trainable_blocks": ic.trainable_blocks,
+                   "final": st.history[-1] if st.history else {}}
+        (out / "summary.json").write_text(json.dumps(summary, indent=1, default=float))
+    dist.close()
+    log.info("done: %d steps in %.1f min", st.step, (time.time() - t_start) / 60)
     return out / "image.pt"
 
 
-def _trunk_for(ic: ImageTrainConfig, init: Optional[dict]) -> Optional[dict]:
-    """The fine-tuned trunk a run uses: --trunk, else the one of an image init checkpoint."""
-    from .trunk import load_trunk
-    if ic.trunk:
-        return load_trunk(ic.trunk)
-    enc = (init or {}).get("image_encoder") or {}
-    if init is not None and init.get("condition") == "image" and enc.get("trunk"):
-        return {**enc["trunk_info"], "state_dict": enc["trunk"]}
-    return None
+def _saver(rc: ImageRunConfig, p: dict, net, opt, out: Path, prior: str):
+    """save_fn of the loop: OUT/last.pt (resumable) and, at the end, OUT/image.pt."""
+    from model.articulation.checkpoint import save_checkpoint
+    tc, ic, encoder, data = rc.train, rc.image, p["encoder"], p["data"]
 
-
-def _count_tokens_for(ic: ImageTrainConfig, init: Optional[dict], trunk: Optional[dict], cfg,
-                      split: int):
-    """The count head whose distributions a run adds as count tokens, and its checkpoint entry:
-    ``--count-tokens TRUNK_PT``'s head (it must read this run's trunk), else the init image
-    checkpoint's; (None, None) without either."""
-    from .counts import CountHeadError, count_token_entry, load_count_head
-    entry = None
-    if ic.count_tokens:
-        from .trunk import load_trunk
-        src = load_trunk(ic.count_tokens)
-        if trunk is None or src.get("tag") != trunk.get("tag"):
-            raise ValueError(f"--count-tokens {ic.count_tokens}: its count head reads trunk "
-                             f"{src.get('tag')}, this run's features are those of "
-                             f"{None if trunk is None else trunk.get('tag')}")
-        entry = count_token_entry(src, ic.count_tokens)
-    elif init is not None and init.get("count_tokens"):
-        entry = init["count_tokens"]
-    if entry is None:
-        return None, None
-    try:
-        head = load_count_head(entry, list(cfg.count_labels or []))
-    except CountHeadError as e:
-        raise ValueError(f"count tokens: {e}") from e
-    if head.cfg.split != split:
-        raise ValueError(f"count tokens: the head reads block {head.cfg.split}, the feature cache "
-                         f"holds block {split}")
-    return head, entry
-
-
-def _trunk_entry(trunk: Optional[dict]) -> dict:
-    """What an image checkpoint keeps of its fine-tuned trunk: the weights (fp16) and where
-    they came from (without the per-evaluation history)."""
-    if trunk is None:
-        return {}
-    train = {k: v for k, v in (trunk.get("train") or {}).items() if k != "history"}
-    info = {k: trunk[k] for k in ("kind", "freeze", "split", "tag") if k in trunk}
-    return {"trunk": trunk["state_dict"], "trunk_info": {**info, "train": train}}
+    def save(st, final: bool) -> None:
+        extra = {"condition": "image", "targets": getattr(rc.targets, "name", "?"),
+                 "image_encoder": {"config": asdict(encoder.config),
+                                   "tail": encoder.tail_state_dict(), **trunk_entry(p["trunk"])},
+                 "image_train_config": asdict(ic), "renders": p["render_info"],
+                 **({"count_tokens": p["counter_entry"]} if p["counter_entry"] else {}),
+                 "extra_train": p["extra_info"],
+                 "init": ic.init if p["init"] is not None else "none", "ablation": "none",
+                 **st.entries()}
+        common = dict(stats=data.stats, label_table=data.label_table,
+                      text_encoder=tc.text_encoder, data_version=data.data_version, seed=tc.seed,
+                      command=rc.command, step=st.step, train_config=asdict(tc), prior=prior)
+        save_checkpoint(out / "last.pt", net, extra={**extra, "optimizer": opt.state_dict()},
+                        **common)
+        if final:
+            save_checkpoint(out / "image.pt", net, extra=extra, **common)
+            (out / "history.json").write_text(json.dumps(st.history, indent=1, default=float))
+    return save
 
 
 def write_half(src: Path, dst: Path) -> None:
@@ -520,154 +492,7 @@ def write_half(src: Path, dst: Path) -> None:
     save_dict(dst, ck)
 
 
-# ---------------------------------------------------------------------------------------------
-# CLI
-# ---------------------------------------------------------------------------------------------
-def _parser():
-    import argparse
-    ap = argparse.ArgumentParser(
-        prog="artformer train image",
-        description="Train the articulation transformer conditioned on rendered images "
-                    "(EfficientNet-Lite0 tokens), or --eval an image checkpoint on held-out renders.")
-    ap.add_argument("--data", default="data/prepared/v1")
-    ap.add_argument("--renders", default="data/renders/v1")
-    ap.add_argument("--prior", default="model/weights/prior_small.pt",
-                    help="shape-prior checkpoint (P_gt / c_s targets); 'none' = stand-in targets")
-    ap.add_argument("--sdf", default="model/weights/sdf_small.pt")
-    ap.add_argument("--preset", default="small")
-    ap.add_argument("--out", default="runs/image_small")
-    ap.add_argument("--init", default="model/weights/transformer_small.pt",
-                    help="text transformer checkpoint to start from ('none' = from scratch)")
-    ap.add_argument("--trainable-blocks", type=int, default=0, choices=(0, 1),
-                    help="0 = frozen encoder (default), 1 = fine-tune its last block + head")
-    ap.add_argument("--tail-lr-mult", type=float, default=0.1)
-    ap.add_argument("--trunk", metavar="TRUNK_PT",
-                    help="read the features of this fine-tuned trunk (`artformer train "
-                         "image-trunk`); default: the --init image checkpoint's, else ImageNet's")
-    ap.add_argument("--multiscale", action="store_true",
-                    help="tokens also carry the 14x14 block-10 features (1728-d); from a "
-                         "1280-d image checkpoint the projection is widened with zeros")
-    ap.add_argument("--image-size", type=int, default=224, metavar="PX",
-                    help="encoder input side, a multiple of 224 (448: the renders upsampled 2x so "
-                         "small parts cover 4x the feature-map cells; the map entering the last "
-                         "block is pooled back to 7x7); default 224")
-    ap.add_argument("--count-tokens", metavar="TRUNK_PT",
-                    help="add the count head of this trunk file (the run's own trunk) to the "
-                         "condition: one token per label carrying its count distribution")
-    ap.add_argument("--count-truth", type=float, default=0.0, metavar="SHARE",
-                    help="with count tokens: share of training views whose tokens carry the "
-                         "object's true counts instead of the head's (default 0)")
-    ap.add_argument("--no-positions", action="store_true",
-                    help="no 2-D position embedding of the 7x7 image tokens (the earlier model)")
-    ap.add_argument("--extra-train", nargs=2, action="append", default=[],
-                    metavar=("DATA", "RENDERS"),
-                    help="more training objects: a prepared dataset with its own data version "
-                         "and its render set (all its splits train; repeatable)")
-    ap.add_argument("--steps", type=int)
-    ap.add_argument("--minutes", type=float)
-    ap.add_argument("--batch-size", type=int)
-    ap.add_argument("--lr", type=float)
-    ap.add_argument("--warmup", type=int, help="override warmup_steps")
-    ap.add_argument("--own-inputs", type=float, metavar="SHARE",
-                    help="scheduled sampling: share of the objects per batch whose nodes carry "
-                         "the network's own articulation predictions (default 0)")
-    ap.add_argument("--seed", type=int)
-    ap.add_argument("--threads", type=int)
-    ap.add_argument("--half", metavar="PATH", help="also write an fp16 copy (the shipped file)")
-    ap.add_argument("--eval", metavar="CKPT", help="category / structure accuracy of CKPT on --split")
-    ap.add_argument("--split", default="test")
-    ap.add_argument("--pipeline", type=int, metavar="N", default=0,
-                    help="--eval: instead, run N test images through the whole generator "
-                         "(the --eval folder or 'shipped') and report POR, validity, structure")
-    ap.add_argument("--limit", type=int, default=0)
-    ap.add_argument("--eval-views", default="all", help="--eval: view indices (comma list) or 'all'")
-    ap.add_argument("--eval-seed", type=int, default=0)
-    ap.add_argument("--temperature", type=float, default=1.0)
-    ap.add_argument("--follow-plan", action="store_true",
-                    help="--eval: decode with END decisions held to the START plan head")
-    ap.add_argument("--no-count-plan", action="store_true",
-                    help="--eval: ignore the checkpoint's count head (decode END freely)")
-    ap.add_argument("--oracle-plan", action="store_true",
-                    help="--eval diagnostic: hold END decisions to each object's TRUE part "
-                         "counts (how far count-guided decoding can go)")
-    ap.add_argument("--visibility", action="store_true",
-                    help="--eval: also measure every part's visible pixels in each render and "
-                         "report structure by visibility (by_visibility)")
-    ap.add_argument("--visible-px", type=int, default=16,
-                    help="--visibility: pixels a part needs to count as visible (default 16)")
-    ap.add_argument("--frame", action="store_true",
-                    help="--eval: crop each picture around its object first, as the product "
-                         "does for photos (model.encoders.framing)")
-    ap.add_argument("--farther", type=float, default=1.0, metavar="S",
-                    help="--eval: show each render at S (< 1) of the picture's side, in the "
-                         "middle of a larger picture of its background colour: a photo taken "
-                         "from further away (default 1: the render as it is)")
-    ap.add_argument("--json", metavar="PATH")
-    ap.add_argument("--no-progress", action="store_true")
-    return ap
-
-
 def cli_main(argv: list[str]) -> int:
-    import shlex
-    args = _parser().parse_args(argv)
-    if args.eval and args.pipeline:
-        from .evaluate import image_pipeline_report
-        rep = image_pipeline_report(args.data, args.renders, split=args.split, n=args.pipeline,
-                                    checkpoint=None if args.eval == "shipped" else args.eval,
-                                    seed=args.eval_seed, progress=not args.no_progress)
-        print(json.dumps({k: v for k, v in rep.items() if k != "rows"}, indent=1))
-        if args.json:
-            Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-            Path(args.json).write_text(json.dumps(rep, indent=1))
-        return 0
-    if args.eval:
-        from .evaluate import image_alignment_report
-        if not 0 < args.farther <= 1:
-            print(f"artformer train image: --farther must be in (0, 1], got {args.farther}", flush=True)
-            return 2
-        views = None if args.eval_views == "all" else [int(v) for v in args.eval_views.split(",")]
-        rep = image_alignment_report(args.eval, args.data, args.renders, split=args.split,
-                                     views=views, limit=args.limit, seed=args.eval_seed,
-                                     temperature=args.temperature, follow_plan=args.follow_plan,
-                                     count_plan=not args.no_count_plan,
-                                     oracle_plan=args.oracle_plan, visibility=args.visibility,
-                                     visible_px=args.visible_px, frame=args.frame,
-                                     farther=args.farther, progress=not args.no_progress)
-        print(json.dumps({k: v for k, v in rep.items() if k != "rows"}, indent=1))
-        if args.json:
-            Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-            Path(args.json).write_text(json.dumps(rep, indent=1))
-        return 0
-    from model.articulation.commands import make_targets
-    from model.articulation.config import preset
-    overrides = {k: v for k, v in {"max_steps": args.steps, "max_minutes": args.minutes,
-                                   "batch_size": args.batch_size, "lr": args.lr,
-                                   "warmup_steps": args.warmup, "own_inputs": args.own_inputs,
-                                   "seed": args.seed, "threads": args.threads}.items()
-                 if v is not None}
-    net_cfg, tc = preset(args.preset, **overrides)
-    targets = make_targets(args.prior, args.sdf, net_cfg)
-    ic = ImageTrainConfig(trainable_blocks=args.trainable_blocks, tail_lr_mult=args.tail_lr_mult,
-                          init=args.init, positions=not args.no_positions,
-                          multiscale=args.multiscale, trunk=args.trunk or "",
-                          image_size=args.image_size, count_tokens=args.count_tokens or "",
-                          count_truth=args.count_truth)
-    try:
-        check_image_size(args.image_size)
-    except ValueError as e:
-        print(f"artformer train image: --image-size: {e}", flush=True)
-        return 2
-    if ic.init.lower() != "none" and not Path(ic.init).exists():
-        print(f"artformer train image: --init {ic.init} does not exist; train the text model "
-              f"first or pass --init none", flush=True)
-        return 2
-    command = "artformer train image " + " ".join(shlex.quote(a) for a in argv)
-    path = train_image(ImageRunConfig(data=args.data, renders=args.renders, out=args.out,
-                                      net=net_cfg, train=tc, image=ic, targets=targets,
-                                      command=command, progress=not args.no_progress,
-                                      extra=[tuple(x) for x in args.extra_train]))
-    if args.half:
-        write_half(path, Path(args.half))
-        print(f"fp16 copy: {args.half}")
-    print(f"checkpoint: {path}")
-    return 0
+    """`artformer train image` (model.imaging.commands)."""
+    from .commands import train_image_main
+    return train_image_main(argv)

@@ -115,6 +115,26 @@ def count_labels_of(image_ckpt=None) -> list[str]:
     return labels
 
 
+def trunk_for_run(ic, init: Optional[dict]) -> Optional[dict]:
+    """The fine-tuned trunk a run uses: --trunk, else the one of an image init checkpoint."""
+    if ic.trunk:
+        return load_trunk(ic.trunk)
+    enc = (init or {}).get("image_encoder") or {}
+    if init is not None and init.get("condition") == "image" and enc.get("trunk"):
+        return {**enc["trunk_info"], "state_dict": enc["trunk"]}
+    return None
+
+
+def trunk_entry(trunk: Optional[dict]) -> dict:
+    """What an image checkpoint keeps of its fine-tuned trunk: the weights (fp16) and where
+    they came from (without the per-evaluation history)."""
+    if trunk is None:
+        return {}
+    train = {k: v for k, v in (trunk.get("train") or {}).items() if k != "history"}
+    info = {k: trunk[k] for k in ("kind", "freeze", "split", "tag") if k in trunk}
+    return {"trunk": trunk["state_dict"], "trunk_info": {**info, "train": train}}
+
+
 def trunk_keys(net, freeze: int, split: int = COUNT_SPLIT) -> list[str]:
     keep = tuple(f"_blocks.{i}." for i in range(freeze, split))
     return [k for k in net.state_dict() if k.startswith(keep)]
@@ -227,23 +247,7 @@ def _exact_counts(enc, head, views: _Views, freeze: int, batch: int = 50) -> dic
     return exact_counts(head, X, views.Y)
 
 
-def train_trunk(data_root: str, render_root: str, out: str, *, extra: Optional[list] = None,
-                tc: Optional[TrunkTrainConfig] = None, labels: Optional[list] = None,
-                max_count: int = 20, command: str = "") -> Path:
-    """Fine-tune trunk blocks ``tc.freeze``..14 + a count head on the rendered train objects of
-    ``data_root`` (+ every split of each ``extra`` (data, renders) pair); keep the best of
-    ``tc.evals`` val evaluations; write OUT/trunk.pt."""
-    from model.encoders.image import ImageEncoder, ImageEncoderConfig, preprocess
-    tc = tc or TrunkTrainConfig()
-    if not 0 <= tc.freeze < COUNT_SPLIT:
-        raise ValueError(f"freeze must be in [0, {COUNT_SPLIT - 1}], got {tc.freeze}")
-    torch.set_num_threads(max(1, tc.threads))
-    torch.manual_seed(tc.seed)
-    rng = np.random.default_rng(tc.seed)
-    if labels is None:
-        labels = count_labels_of()
-    t0 = time.time()
-    centres = tc.centre_weight > 0
+def _trunk_sets(data_root, render_root, extra, labels, max_count: int, centres: bool):
     train = _Views([(data_root, render_root, ("train",))]
                    + [(d, r, ("train", "val", "test")) for d, r in extra or []], labels, max_count,
                    centres=centres)
@@ -252,13 +256,16 @@ def train_trunk(data_root: str, render_root: str, out: str, *, extra: Optional[l
     val = _Views([(data_root, render_root, ("val",))], labels, max_count)
     if not len(train) or not len(val):
         raise ValueError(f"{render_root}: no rendered train or val objects")
-    K = len(train.paths[0])
-    log.info("trunk: %d train objects x %d views, %d val objects", len(train), K, len(val))
+    return train, val
 
+
+def _trunk_modules(tc: TrunkTrainConfig, labels: list, max_count: int):
+    """Encoder (blocks freeze..14 trainable, from ``tc.init`` when given), count head, centre
+    head or None, optimizer (the heads at ``head_lr_mult``), whether the head continues."""
+    from model.encoders.image import ImageEncoder, ImageEncoderConfig
     enc = ImageEncoder(ImageEncoderConfig())
     net = enc.net
     net.eval()                       # BatchNorm statistics stay ImageNet's
-    keys = trunk_keys(net, tc.freeze)
     if tc.init:
         start = initial_trunk(tc.init, tc.freeze)
         first = first_block(start)
@@ -277,67 +284,112 @@ def train_trunk(data_root: str, render_root: str, out: str, *, extra: Optional[l
         log.info("trunk: the count head continues from %s", tc.init)
     heads = list(head.parameters())
     centre_head = None
-    if centres:
+    if tc.centre_weight > 0:
         centre_head = CentreHead(head.cfg.in_channels, len(labels))
-        centre_head.train()
         heads += list(centre_head.parameters())
-    opt = torch.optim.AdamW([{"params": params, "lr": tc.lr, "base": tc.lr},
-                             {"params": heads, "lr": tc.lr * tc.head_lr_mult,
-                              "base": tc.lr * tc.head_lr_mult}], weight_decay=tc.weight_decay)
-    every = max(1, tc.steps // max(1, tc.evals))
-    best, history = None, []
-    t_loop = time.time()
-    head.train()
-    for step in range(1, tc.steps + 1):
-        warm = min(1.0, step / max(1, tc.warmup))
-        cos = 0.5 * (1 + np.cos(np.pi * (step - 1) / max(1, tc.steps)))
-        for g in opt.param_groups:
-            g["lr"] = g["base"] * warm * cos
-        b = rng.integers(0, len(train), tc.batch_size)
-        v = rng.integers(0, K, tc.batch_size)
+    opt = torch.optim.AdamW([{"params": params}, {"params": heads, "lr_mult": tc.head_lr_mult}],
+                            lr=tc.lr, weight_decay=tc.weight_decay)
+    return enc, head, centre_head, opt, head_start is not None
+
+
+class _TrunkModel(nn.Module):
+    """The trained blocks and heads as one module (what the shared loop trains)."""
+
+    def __init__(self, enc, head, centre_head, freeze: int):
+        super().__init__()
+        self.enc, self.head, self.centre_head, self.freeze = enc, head, centre_head, freeze
+
+    def train(self, mode: bool = True):
+        super().train(mode)
+        self.enc.net.eval()              # BatchNorm statistics stay ImageNet's
+        return self
+
+    def forward(self, x):
+        h = _trunk_forward(self.enc, x, self.freeze)
+        return self.head(h), (self.centre_head(h) if self.centre_head is not None else None)
+
+
+def train_trunk(data_root: str, render_root: str, out: str, *, extra: Optional[list] = None,
+                tc: Optional[TrunkTrainConfig] = None, labels: Optional[list] = None,
+                max_count: int = 20, command: str = "", progress: bool = True) -> Path:
+    """Fine-tune trunk blocks ``tc.freeze``..14 + a count head on the rendered train objects of
+    ``data_root`` (+ every split of each ``extra`` (data, renders) pair) on the shared loop;
+    keep the best of ``tc.evals`` val evaluations; write OUT/trunk.pt."""
+    from model.core.training import LoopConfig, seed_all, train_loop
+    from model.encoders.image import preprocess
+    tc = tc or TrunkTrainConfig()
+    if not 0 <= tc.freeze < COUNT_SPLIT:
+        raise ValueError(f"freeze must be in [0, {COUNT_SPLIT - 1}], got {tc.freeze}")
+    torch.set_num_threads(max(1, tc.threads))
+    rng = seed_all(tc.seed)
+    labels = count_labels_of() if labels is None else labels
+    t0 = time.time()
+    train, val = _trunk_sets(data_root, render_root, extra, labels, max_count, tc.centre_weight > 0)
+    K = len(train.paths[0])
+    log.info("trunk: %d train objects x %d views, %d val objects", len(train), K, len(val))
+    enc, head, centre_head, opt, continued = _trunk_modules(tc, labels, max_count)
+    model = _TrunkModel(enc, head, centre_head, tc.freeze)
+    keys = trunk_keys(enc.net, tc.freeze)
+    best, history, last = None, [], {}
+
+    def step_fn(net, step):
+        b, v = rng.integers(0, len(train), tc.batch_size), rng.integers(0, K, tc.batch_size)
         x = preprocess([train.paths[i][j] for i, j in zip(b, v)])
         flip = torch.from_numpy(rng.random(tc.batch_size) < tc.flip)
         x[flip] = x[flip].flip(-1)
-        h = _trunk_forward(enc, x, tc.freeze)
-        loss = F.cross_entropy(head(h).transpose(1, 2), train.Y[torch.from_numpy(b)])
-        if centre_head is not None:
+        logits, centres = net(x)
+        loss = F.cross_entropy(logits.transpose(1, 2), train.Y[torch.from_numpy(b)])
+        last.update(step=step + 1, count_loss=loss.item())
+        if centres is not None:
             target = train.M[torch.from_numpy(b), torch.from_numpy(v)]
             target = torch.where(flip[:, None, None, None], target.flip(-1), target)
-            c_loss = centre_loss(centre_head(h), target)
-            loss_parts = (loss.item(), c_loss.item())
+            c_loss = centre_loss(centres, target)
+            last["centre_loss"] = c_loss.item()
             loss = loss + tc.centre_weight * c_loss
-        opt.zero_grad(set_to_none=True)
-        loss.backward()
-        opt.step()
-        if step % every == 0 or step == tc.steps:
-            ev = _exact_counts(enc, head, val, tc.freeze)
-            rec = {"step": step, "train_loss": round(loss.item(), 4), "val_exact": ev["exact"],
-                   **({"count_loss": round(loss_parts[0], 4), "centre_loss": round(loss_parts[1], 4)}
-                      if centre_head is not None else {}),
-                   "val_per_label": dict(zip(labels, ev["per_label"])),
-                   "minutes": round((time.time() - t_loop) / 60, 2)}
-            history.append(rec)
-            log.info("trunk step %d/%d loss %.4f val exact %.4f (%.1f min)", step, tc.steps,
-                     rec["train_loss"], ev["exact"], rec["minutes"])
-            if best is None or ev["exact"] > best[0]["val_exact"]:
-                sd = net.state_dict()
-                best = (rec, half_state({k: sd[k] for k in keys}), half_state(head.state_dict()),
-                        half_state(centre_head.state_dict()) if centre_head is not None else None)
+        last["train_loss"] = loss.item()
+        return loss, {}
+
+    def val_fn():
+        nonlocal best
+        ev = _exact_counts(enc, head, val, tc.freeze)
+        rec = {"step": last["step"], "train_loss": round(last["train_loss"], 4),
+               "val_exact": ev["exact"],
+               **({"count_loss": round(last["count_loss"], 4),
+                   "centre_loss": round(last["centre_loss"], 4)} if centre_head is not None else {}),
+               "val_per_label": dict(zip(labels, ev["per_label"])),
+               "minutes": round((time.time() - t0) / 60, 2)}
+        history.append(rec)
+        if best is None or ev["exact"] > best[0]["val_exact"]:
+            sd = enc.net.state_dict()
+            best = (rec, half_state({k: sd[k] for k in keys}), half_state(head.state_dict()),
+                    half_state(centre_head.state_dict()) if centre_head is not None else None)
+        return {"exact": ev["exact"]}
+
+    cfg = LoopConfig(steps=tc.steps, lr=tc.lr, warmup=tc.warmup, floor=0.0,
+                     val_every=max(1, tc.steps // max(1, tc.evals)), progress=progress,
+                     desc="train image-trunk")
+    train_loop(model, opt, cfg, step_fn, val_fn=val_fn)
+    info = {"command": command, "seed": tc.seed, "config": asdict(tc),
+            "data_versions": train.versions, "train_objects": len(train), "views": K,
+            "val_objects": len(val), "head_continued": continued, "history": history,
+            "head_config": asdict(head.cfg),
+            "minutes": round((time.time() - t0) / 60, 2)}
+    return _write_trunk(Path(out), best, labels, tc, info)
+
+
+def _write_trunk(out_dir: Path, best, labels, tc: TrunkTrainConfig, info: dict) -> Path:
+    """OUT/trunk.pt of the chosen evaluation (and OUT/trunk_history.json)."""
     rec, state, head_state, centre_state = best
-    out_dir = Path(out)
     out_dir.mkdir(parents=True, exist_ok=True)
     trunk = {"freeze": tc.freeze, "split": COUNT_SPLIT, "tag": trunk_tag(state),
              "state_dict": state,
-             "count_head": {"config": asdict(head.cfg), "state_dict": head_state},
+             "count_head": {"config": info.pop("head_config"), "state_dict": head_state},
              **({"centre_head": {"labels": list(labels), "state_dict": centre_state}}
                 if centre_state is not None else {}),
-             "train": {"command": command, "seed": tc.seed, "config": asdict(tc),
-                       "data_versions": train.versions, "train_objects": len(train), "views": K,
-                       "val_objects": len(val), "head_continued": head_start is not None,
-                       "chosen": rec, "history": history,
-                       "minutes": round((time.time() - t0) / 60, 2)}}
-    meta = CheckpointMeta(kind=TRUNK_KIND, data_version=",".join(train.versions), seed=tc.seed,
-                          command=command, step=int(rec["step"]), train_config=asdict(tc))
+             "train": {**info, "chosen": rec}}
+    meta = CheckpointMeta(kind=TRUNK_KIND, data_version=",".join(info["data_versions"]),
+                          seed=tc.seed, command=info["command"], step=int(rec["step"]),
+                          train_config=asdict(tc))
     write_checkpoint(out_dir / "trunk.pt", meta, trunk)
     (out_dir / "trunk_history.json").write_text(json.dumps(trunk["train"], indent=1))
     log.info("trunk: chose step %d (val exact %.4f); wrote %s", rec["step"], rec["val_exact"],
