@@ -230,6 +230,8 @@ def test_training_command_writes_resumable_checkpoints(trained):
     ck = read_checkpoint(out / "last.pt")
     assert ck["step"] == 150 and "optimizer" in ck
     assert ck["data_version"] == "toy1" and ck["seed"] == 0 and "--preset tiny" in ck["command"]
+    # trained on stand-in targets: recorded as such, also in the fp16 copy (--half)
+    assert ck["prior"] == "stand-in" and read_checkpoint(root / "h.pt")["prior"] == "stand-in"
     hist = json.loads((out / "history.json").read_text())
     assert "val" in hist[-1] and np.isfinite(hist[-1]["val"]["total"])
     from model.articulation.commands import main

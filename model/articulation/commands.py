@@ -123,7 +123,9 @@ def main(argv: list[str]) -> int:
         save_checkpoint(args.half, net, stats=ck["stats"], label_table=ck["label_table"],
                         text_encoder=ck["text_encoder"], data_version=ck["data_version"],
                         seed=ck["seed"], command=ck["command"], step=ck["step"],
-                        train_config=ck["train_config"], extra=keep, half=True)
+                        train_config=ck["train_config"], extra=keep, half=True,
+                        prior=ck.get("prior", ""), device=ck.get("device", "cpu"),
+                        recipe=ck.get("recipe", []))
         print(f"fp16 copy: {args.half}")
     print(f"checkpoint: {path}")
     return 0

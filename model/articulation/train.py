@@ -51,7 +51,12 @@ def _part_targets(root: Path, recs: list[fmt.ObjectRecord], targets, predict_z: 
           f"{getattr(targets, 'sdf_path', '')}:{'z' if predict_z else f'P{layout}'}"
     cache = {}
     if cache_path is not None and cache_path.exists():
-        d = torch.load(cache_path, map_location="cpu", weights_only=False)
+        from model.core.checkpoint import load_weights_only
+        try:
+            d = load_weights_only(cache_path)
+        except Exception as e:  # noqa: BLE001 - a damaged cache is rebuilt
+            log.warning("part-target cache %s unreadable (%s); rebuilding it", cache_path, e)
+            d = {}
         if d.get("key") == key:
             cache = d["geo"]
     todo = [r for r in recs if r.id not in cache]
@@ -66,7 +71,10 @@ def _part_targets(root: Path, recs: list[fmt.ObjectRecord], targets, predict_z: 
                 cache[r.id] = targets.code_distribution(torch.as_tensor(z)).numpy().astype(np.float32)
         if cache_path is not None:
             cache_path.parent.mkdir(parents=True, exist_ok=True)
-            torch.save({"key": key, "geo": cache}, cache_path)
+            import io
+            buf = io.BytesIO()
+            torch.save({"key": key, "geo": cache}, buf)
+            fmt.atomic_write_bytes(cache_path, buf.getvalue())
     return cache
 
 

@@ -88,6 +88,13 @@ def _numpy_globals() -> list:
     return out
 
 
+def load_weights_only(path: Union[str, os.PathLike]) -> Any:
+    """``torch.load`` of a cache file (tensors, plain containers, numpy arrays) without running
+    pickled code; raises what torch raises."""
+    with torch.serialization.safe_globals(_numpy_globals()):
+        return torch.load(path, map_location="cpu", weights_only=True)
+
+
 def write_checkpoint(path: Union[str, os.PathLike], meta: CheckpointMeta, payload: dict) -> None:
     """Atomic write (temp file + rename) of ``payload`` with ``meta`` as its header."""
     if meta.kind not in KINDS:
@@ -101,8 +108,7 @@ def write_checkpoint(path: Union[str, os.PathLike], meta: CheckpointMeta, payloa
 
 def _load(path: Path, how: str) -> Any:
     try:
-        with torch.serialization.safe_globals(_numpy_globals()):
-            return torch.load(path, map_location="cpu", weights_only=True)
+        return load_weights_only(path)
     except Exception as e:  # noqa: BLE001 - truncated, not a torch file, foreign pickles
         first = (str(e).splitlines() or [""])[0][:200]
         if "Weights only load failed" in str(e) or "Unsupported global" in str(e):
@@ -203,5 +209,6 @@ def shape_prior_fingerprint(sdf_path: Union[str, os.PathLike],
     return prior_fingerprint(read_checkpoint(sdf_path, "sdf"), read_checkpoint(prior_path, "prior"))
 
 
-__all__ = ["FORMAT", "KINDS", "CheckpointError", "CheckpointMeta", "write_checkpoint",
+__all__ = ["FORMAT", "KINDS", "CheckpointError", "CheckpointMeta", "load_weights_only",
+           "write_checkpoint",
            "read_checkpoint", "check_prior", "prior_fingerprint", "shape_prior_fingerprint"]
