@@ -74,6 +74,36 @@ def test_wall_clock_budget_stops_and_counts_resumed_time():
     assert calls == [] and st.step == 3
 
 
+def test_chunks_stop_and_resume_to_the_uninterrupted_result():
+    """--chunk-minutes stops a process early without bending the schedule: chunks resumed
+    to the end give the weights of one uninterrupted run."""
+    import time
+    x, y = _regression()
+
+    def run(chunks: bool):
+        torch.manual_seed(0)
+        model = torch.nn.Linear(3, 1)
+        opt = torch.optim.SGD(model.parameters(), lr=0.1)
+
+        def step_fn(net, step):
+            time.sleep(0.02)
+            i = torch.arange(step * 8, step * 8 + 8) % 64
+            return torch.nn.functional.mse_loss(net(x[i]).squeeze(1), y[i]), {}
+
+        cfg = LoopConfig(steps=16, lr=0.1, warmup=2, progress=False,
+                         chunk_minutes=0.1 / 60 if chunks else 0.0)
+        st, stops = LoopState(), []
+        while st.step < cfg.steps:
+            st = train_loop(model, opt, cfg, step_fn, state=LoopState.of(st.entries()))
+            stops.append(st.step)
+        return model, stops
+
+    whole, one = run(False)
+    chunked, stops = run(True)
+    assert one == [16] and len(stops) >= 2 and stops[-1] == 16
+    assert torch.allclose(whole.weight, chunked.weight) and torch.allclose(whole.bias, chunked.bias)
+
+
 def _free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))

@@ -30,6 +30,9 @@ def _parser() -> argparse.ArgumentParser:
     ap.add_argument("--preset", default="small", choices=sorted(PRESETS))
     ap.add_argument("--out", default="runs/transformer_small")
     ap.add_argument("--resume", action="store_true", help="continue from OUT/last.pt")
+    ap.add_argument("--chunk-minutes", type=float, default=0.0, metavar="M",
+                    help="stop after M minutes of this process, checkpoint written; --resume "
+                         "continues (the schedule follows --steps / --minutes)")
     ap.add_argument("--init", metavar="CKPT", help="start from the weights of CKPT (fine-tune; "
                                                    "tensors whose shapes differ are skipped)")
     ap.add_argument("--extra-train", metavar="DATA", action="append", default=[],
@@ -112,7 +115,7 @@ def main(argv: list[str]) -> int:
     path = train(RunConfig(data=args.data, out=args.out, net=net_cfg, train=tc, targets=targets,
                            resume=args.resume, init=args.init, ablation=args.ablation,
                            command=command, extra=list(args.extra_train),
-                           extra_wordings=args.extra_wordings,
+                           extra_wordings=args.extra_wordings, chunk_minutes=args.chunk_minutes,
                            progress=not args.no_progress))
     if args.half:
         from .checkpoint import build_network, read_checkpoint, save_checkpoint

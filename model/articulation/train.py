@@ -237,14 +237,15 @@ def own_input_tokens(net: ArticulationTransformer, items: list[TreeItem], groups
     return len(own)
 
 
-def loop_config(tc: TrainConfig, desc: str, progress: bool, out=None) -> "LoopConfig":
+def loop_config(tc: TrainConfig, desc: str, progress: bool, out=None,
+                chunk_minutes: float = 0.0) -> "LoopConfig":
     """The shared loop's settings of a transformer run (text or image): warm-up, then cosine
     to 10 % by max_steps or by the wall-clock budget, whichever comes first."""
     from model.core.training import LoopConfig
     return LoopConfig(steps=tc.max_steps, lr=tc.lr, warmup=tc.warmup_steps, floor=0.1,
                       minutes=tc.max_minutes, val_every=tc.val_every, ckpt_every=tc.ckpt_every,
                       grad_clip=tc.grad_clip, progress=progress, desc=desc,
-                      log_dir=None if out is None else str(out))
+                      log_dir=None if out is None else str(out), chunk_minutes=chunk_minutes)
 
 
 @dataclass
@@ -261,6 +262,7 @@ class RunConfig:
     progress: bool = True
     extra: list = field(default_factory=list)   # more prepared datasets, all splits to train
     extra_wordings: int = 0          # wordings per description length kept for them (0 = all)
+    chunk_minutes: float = 0.0       # stop this process after M minutes (resume continues)
 
 
 @torch.no_grad()
@@ -435,7 +437,7 @@ def train(rc: RunConfig) -> Path:
         return evaluate_loss(net, va, data.geo_shape, text_cache, tc, tc.val_batches,
                              label_cs=label_cs) if va else None
 
-    st = train_loop(net, opt, loop_config(tc, "train transformer", rc.progress, out), step_fn,
+    st = train_loop(net, opt, loop_config(tc, "train transformer", rc.progress, out, rc.chunk_minutes), step_fn,
                     val_fn=val_fn, save_fn=save, state=state, dist=dist, unused_params=True)
     dist.close()
     log.info("done: %d steps in %.1f min", st.step, (time.time() - t_start) / 60)

@@ -6,7 +6,9 @@ A trainer supplies a model, an optimizer and three callbacks; the loop owns the 
 * the learning rate (``lr_at``: linear warm-up, then cosine to ``floor`` of the peak by the
   step budget or by the wall-clock budget, whichever comes first; a param group's
   ``lr_mult`` scales it);
-* the step budget and the wall-clock budget (``minutes``, counted over resumed runs);
+* the step budget and the wall-clock budget (``minutes``, counted over resumed runs), and
+  ``chunk_minutes``: this process stops (writing its checkpoint) after that long without
+  touching the schedule, so a long run goes in resumable chunks;
 * gradient clipping, progress bars (tqdm; off with ``progress=False``), log lines;
 * validation every ``val_every`` steps and at the end (rank 0), a JSON line per validation
   in ``OUT/log.jsonl`` and the history kept in the state for the checkpoint;
@@ -100,6 +102,8 @@ class LoopConfig:
     warmup: int = 0
     floor: float = 0.1              # final learning rate as a share of the peak
     minutes: float = 0.0            # wall-clock budget over resumes (0 = none)
+    chunk_minutes: float = 0.0      # stop this process after this long (0 = never); the
+                                    # schedule is untouched: --resume continues the run
     val_every: int = 0              # validate every N steps (0 = only at the end)
     ckpt_every: int = 0             # run checkpoint every N steps (0 = only at the end)
     grad_clip: float = 0.0          # per param group (0 = none)
@@ -153,7 +157,9 @@ class _Run:
         return self.base + time.time() - self.t0
 
     def over_budget(self) -> bool:
-        return bool(self.dist.any(self.cfg.minutes > 0 and self.elapsed() > self.cfg.minutes * 60))
+        c = self.cfg
+        return bool(self.dist.any(c.minutes > 0 and self.elapsed() > c.minutes * 60
+                                  or c.chunk_minutes > 0 and time.time() - self.t0 > c.chunk_minutes * 60))
 
     def lr(self) -> float:
         c = self.cfg
@@ -213,8 +219,8 @@ def train_loop(model: torch.nn.Module, opt: torch.optim.Optimizer, cfg: LoopConf
     lr = cfg.lr
     while state.step < cfg.steps:
         if run.over_budget():
-            log.info("%s: wall-clock budget of %.1f min reached at step %d", cfg.desc,
-                     cfg.minutes, state.step)
+            log.info("%s: time budget reached at step %d (%.1f min trained)", cfg.desc,
+                     state.step, run.elapsed() / 60)
             break
         lr = run.lr()
         for g in opt.param_groups:

@@ -42,6 +42,7 @@ class RunArgs:
     codebook_size: Optional[int] = None  # one_codebook ablation: 1 x 512)
     argv: tuple[str, ...] = ()
     minutes: float = 0.0                 # wall-clock budget over resumes (0 = none)
+    chunk_minutes: float = 0.0           # stop this process after M minutes (resume continues)
 
 
 def _train_cfg(base: TrainConfig, args: RunArgs, n_items: int, world: int) -> TrainConfig:
@@ -82,7 +83,8 @@ def _loop(kind: str, args: RunArgs, model, tcfg: TrainConfig, batch_fn, val_fn, 
     start = state.step if state is not None else 0
     gen = torch.Generator().manual_seed(args.seed * 1_000_003 + dist.rank * 7919 + start)
     cfg = LoopConfig(steps=tcfg.steps, lr=tcfg.lr, warmup=tcfg.warmup, floor=0.05,
-                     minutes=args.minutes, val_every=tcfg.val_every, ckpt_every=tcfg.ckpt_every,
+                     minutes=args.minutes, chunk_minutes=args.chunk_minutes,
+                     val_every=tcfg.val_every, ckpt_every=tcfg.ckpt_every,
                      grad_clip=tcfg.grad_clip, progress=args.progress, desc=f"train {kind}",
                      log_dir=str(out))
     t0 = time.time()

@@ -180,6 +180,9 @@ def _image_parser():
                     help="more training objects: a prepared dataset with its own data version "
                          "and its render set (all its splits train; repeatable)")
     ap.add_argument("--resume", action="store_true", help="continue from OUT/last.pt")
+    ap.add_argument("--chunk-minutes", type=float, default=0.0, metavar="M",
+                    help="stop after M minutes of this process, checkpoint written; --resume "
+                         "continues (the schedule follows --steps / --minutes)")
     ap.add_argument("--steps", type=int)
     ap.add_argument("--minutes", type=float)
     ap.add_argument("--batch-size", type=int)
@@ -259,7 +262,7 @@ def train_image_main(argv: list[str]) -> int:
     path = train_image(ImageRunConfig(data=args.data, renders=args.renders, out=args.out,
                                       net=net_cfg, train=tc, image=ic, targets=targets,
                                       command=command, progress=not args.no_progress,
-                                      resume=args.resume,
+                                      resume=args.resume, chunk_minutes=args.chunk_minutes,
                                       extra=[tuple(x) for x in args.extra_train]))
     if args.half:
         write_half(path, Path(args.half))

@@ -69,6 +69,7 @@ class ImageRunConfig:
     # used for training (validation and the held-out test stay those of ``data``)
     extra: list = field(default_factory=list)
     resume: bool = False           # continue from OUT/last.pt
+    chunk_minutes: float = 0.0     # stop this process after M minutes (resume continues)
 
 
 class ImageConditions:
@@ -442,7 +443,7 @@ def train_image(rc: ImageRunConfig) -> Path:
                                    label_cs=label_cs) if p["va"] else None
 
     encoder.train()
-    st = train_loop(net, opt, loop_config(tc, "train image", rc.progress, out), step_fn,
+    st = train_loop(net, opt, loop_config(tc, "train image", rc.progress, out, rc.chunk_minutes), step_fn,
                     val_fn=val_fn, save_fn=save, state=state, dist=dist, unused_params=True)
     if dist.main:
         summary = {"steps": st.step, "train_minutes": st.elapsed / 60,
