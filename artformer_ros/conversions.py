@@ -15,13 +15,15 @@ from __future__ import annotations
 
 import json
 import math
-import re
 import struct
 import unicodedata
 from dataclasses import dataclass
 from typing import Any, Optional
 
 import numpy as np
+
+from model.core import files
+from model.core.files import jsonable
 
 # encoding -> number of 8-bit channels (sensor_msgs/image_encodings.hpp names)
 IMAGE_ENCODINGS: dict[str, int] = {"rgb8": 3, "bgr8": 3, "rgba8": 4, "bgra8": 4, "mono8": 1}
@@ -154,8 +156,8 @@ def parse_text_request(payload: bytes | str, *, max_length: int, assigned_id: st
 
 def slug(text: str, max_length: int = 40) -> str:
     """File-name-safe version of a request id."""
-    s = re.sub(r"[^A-Za-z0-9_-]+", "-", text).strip("-")[:max_length]
-    return s or "request"
+    return files.slug(text, default="request", keep="_-", sep="-", collapse=True,
+                      max_length=max_length)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -194,25 +196,9 @@ def image_to_rgb(msg: Any, *, max_pixels: int) -> np.ndarray:
 # ---------------------------------------------------------------------------------------------
 # results
 # ---------------------------------------------------------------------------------------------
-def _jsonable(x: Any) -> Any:
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return _jsonable(x.tolist())
-    if isinstance(x, np.generic):
-        return _jsonable(x.item())
-    if isinstance(x, float) and not math.isfinite(x):
-        return None
-    if x is None or isinstance(x, (str, int, float, bool)):
-        return x
-    return str(x)
-
-
 def result_to_json(result: dict) -> str:
     """Strict JSON (NaN/inf -> null, numpy -> Python, paths -> str) of a result dict."""
-    return json.dumps(_jsonable(result), allow_nan=False, ensure_ascii=False, sort_keys=True)
+    return json.dumps(jsonable(result), allow_nan=False, ensure_ascii=False, sort_keys=True)
 
 
 # ---------------------------------------------------------------------------------------------

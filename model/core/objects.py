@@ -22,6 +22,8 @@ from typing import Iterable, Mapping, Sequence, Union
 
 import numpy as np
 
+from model.core.files import slug
+
 TOKEN_DIM = 16  # [size(3), centre(3), origin(3), axis(3), t_min, t_max, r_min, r_max]
 
 JointValue = Union[float, tuple[float, float]]
@@ -163,6 +165,17 @@ def rotation_matrix(axis: np.ndarray, angle: float) -> np.ndarray:
         [y * x * C + z * s, c + y * y * C, y * z * C - x * s],
         [z * x * C - y * s, z * y * C + x * s, c + z * z * C],
     ])
+
+
+def rpy_matrix(rpy) -> np.ndarray:
+    """URDF roll-pitch-yaw (fixed axes x, y, z) as a 3x3 rotation: Rz(y) Ry(p) Rx(r)."""
+    r, p, y = (float(v) for v in rpy)
+    cr, sr, cp, sp = math.cos(r), math.sin(r), math.cos(p), math.sin(p)
+    cy, sy = math.cos(y), math.sin(y)
+    Rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
+    Ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
+    Rz = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
+    return Rz @ Ry @ Rx
 
 
 @dataclass
@@ -384,7 +397,7 @@ class ArticulatedObject:
         for tok, jt, par, lab in zip(np.asarray(tokens), joint_types, parents, labels):
             k = counts.get(lab, 0)
             counts[lab] = k + 1
-            parts.append(Part.from_token(tok, jt, name=f"{_slug(lab)}_{k}", label=lab, parent=int(par)))
+            parts.append(Part.from_token(tok, jt, name=f"{slug(lab, default='part', lower=True)}_{k}", label=lab, parent=int(par)))
         return cls(parts=parts, category=category, name=name)
 
     def copy(self) -> "ArticulatedObject":
@@ -400,8 +413,3 @@ class ArticulatedObject:
         return {"category": self.category, "counts": counts,
                 "joint_types": {k: sorted(set(v)) for k, v in joints.items()},
                 "num_parts": len(self.parts), "num_movable": len(self.movable_parts())}
-
-
-def _slug(text: str) -> str:
-    s = "".join(c if c.isalnum() else "_" for c in text.strip().lower()).strip("_")
-    return s or "part"

@@ -22,11 +22,12 @@ from __future__ import annotations
 
 import json
 import os
-import tempfile
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
+
+from model.core.files import atomic_write_bytes, atomic_write_json, atomic_write_text  # noqa: F401
 
 FORMAT_VERSION = 1
 DESCRIPTION_LENGTHS = ("detailed", "sentences", "sentence", "words")
@@ -56,25 +57,6 @@ class ObjectRecord:
     @classmethod
     def from_json(cls, d: dict) -> "ObjectRecord":
         return cls(**d)
-
-
-def atomic_write_bytes(path: os.PathLike, data: bytes) -> None:
-    """Write to a temp file in the same folder, then rename: readers never see half a file."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.name}.", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-
-
-def atomic_write_json(path: os.PathLike, obj) -> None:
-    atomic_write_bytes(path, json.dumps(obj, indent=1).encode())
 
 
 def save_record(root: os.PathLike, rec: ObjectRecord) -> None:

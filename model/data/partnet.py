@@ -37,7 +37,8 @@ from typing import Iterator, Optional
 
 import numpy as np
 
-from model.core.objects import ArticulatedObject, Joint, JointType, Part
+from model.core.files import jsonable
+from model.core.objects import ArticulatedObject, Joint, JointType, Part, rpy_matrix
 from model.data import vocab
 from model.data.format import atomic_write_bytes, atomic_write_json
 
@@ -51,13 +52,6 @@ Y_UP_TO_Z_UP = np.array([[0.0, 0.0, -1.0],
 _JOINT_WORD = {JointType.FIXED: "static", JointType.REVOLUTE: "hinge", JointType.CONTINUOUS: "hinge",
                JointType.PRISMATIC: "slider", JointType.SCREW: "slider"}
 
-
-def _rpy_matrix(r: float, p: float, y: float) -> np.ndarray:
-    cr, sr, cp, sp, cy, sy = math.cos(r), math.sin(r), math.cos(p), math.sin(p), math.cos(y), math.sin(y)
-    Rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
-    Ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
-    Rz = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
-    return Rz @ Ry @ Rx
 
 
 def _translation(xyz) -> np.ndarray:
@@ -143,7 +137,7 @@ def write_partnet(obj: ArticulatedObject, folder: os.PathLike, *,
     meta = {"model_cat": obj.category, "up_axis": "z", "front_axis": "+x", "units": "m",
             "source": "artformer_ros procedural generator", "name": obj.name,
             "part_names": {link[i]: p.name for i, p in enumerate(obj.parts)},
-            "metadata": _jsonable(obj.metadata)}
+            "metadata": jsonable(obj.metadata)}
     meta.update(extra_meta or {})
     atomic_write_json(folder / "meta.json", meta)
     if descriptions is not None:
@@ -191,19 +185,6 @@ def _obj_bytes(mesh) -> bytes:
     return ("\n".join(lines) + "\n").encode()
 
 
-def _jsonable(x):
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return x.tolist()
-    if isinstance(x, (np.integer,)):
-        return int(x)
-    if isinstance(x, (np.floating,)):
-        return float(x)
-    return x
-
 
 # =============================================================================================
 # loader
@@ -218,7 +199,7 @@ def _parse_origin(el) -> np.ndarray:
         return T
     xyz = [float(v) for v in (el.get("xyz") or "0 0 0").split()]
     rpy = [float(v) for v in (el.get("rpy") or "0 0 0").split()]
-    T[:3, :3] = _rpy_matrix(*rpy)
+    T[:3, :3] = rpy_matrix(rpy)
     T[:3, 3] = xyz
     return T
 

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from model.core.objects import (ArticulatedObject, Joint, JointType, ObjectValidationError,
-                                Part)
+                                Part, rpy_matrix)
 
 log = logging.getLogger(__name__)
 
@@ -57,14 +57,6 @@ def resolve_mesh_path(filename: str, urdf_dir: Path) -> Path:
     return p if p.is_absolute() else (urdf_dir / p)
 
 
-def _rpy_matrix(rpy) -> np.ndarray:
-    r, p, y = rpy
-    cr, sr, cp, sp, cy, sy = math.cos(r), math.sin(r), math.cos(p), math.sin(p), math.cos(y), math.sin(y)
-    Rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
-    Ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
-    Rz = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
-    return Rz @ Ry @ Rx
-
 
 def _origin_matrix(el) -> np.ndarray:
     T = np.eye(4)
@@ -74,7 +66,7 @@ def _origin_matrix(el) -> np.ndarray:
     rpy = [float(v) for v in (el.get("rpy") or "0 0 0").split()]
     if len(xyz) != 3 or len(rpy) != 3:
         raise URDFImportError(f"origin needs 3 values in xyz and rpy, got {el.attrib}")
-    T[:3, :3] = _rpy_matrix(rpy)
+    T[:3, :3] = rpy_matrix(rpy)
     T[:3, 3] = xyz
     return T
 

@@ -475,7 +475,7 @@ def export_mjcf(folder: os.PathLike, out_dir: Optional[os.PathLike] = None, *,
     """
     from lxml import etree
 
-    from .urdf import _replace_dir, _slug
+    from .urdf import _replace_dir, object_slug
 
     if not (kp_hz > 0 and math.isfinite(kp_hz)):
         raise ConvertError(f"kp_hz must be a positive number, got {kp_hz!r}")
@@ -484,7 +484,7 @@ def export_mjcf(folder: os.PathLike, out_dir: Optional[os.PathLike] = None, *,
     if out_dir is None:
         out_dir = (src if src.is_dir() else src.parent) / "mjcf"
     out_dir = Path(out_dir).expanduser().resolve()
-    name = _slug(model.name)
+    name = object_slug(model.name)
     out_dir.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(dir=out_dir.parent, prefix=f".{out_dir.name}.tmp-"))
     try:

@@ -29,10 +29,17 @@ from pathlib import Path
 
 import numpy as np
 
+from model.core.files import jsonable, slug
 from model.core.objects import ArticulatedObject, JointType, ObjectValidationError, Part
 
 from .collision import (CollisionConfig, collision_pieces, is_box,  # noqa: F401  (re-exported)
                         is_solid_enough)
+
+
+
+def object_slug(text: str) -> str:
+    """The file and robot name of an object: letters, digits, '_' and '-'."""
+    return slug(text, default="object", keep="_-")
 
 log = logging.getLogger(__name__)
 
@@ -176,7 +183,7 @@ def export_object(obj: ArticulatedObject, out_dir: os.PathLike, *, mesh_format: 
     _check_names(obj)
     collision = collision or CollisionConfig()
     out_dir = Path(out_dir).expanduser().resolve()
-    robot_name = _slug(name or obj.name or "object")
+    robot_name = object_slug(name or obj.name or "object")
     prov = {"package_version": package_version(),
             "exported_utc": _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")}
     prov.update(provenance or {})
@@ -224,10 +231,6 @@ def _check_names(obj: ArticulatedObject) -> None:
                 raise ObjectValidationError(f"part name {n!r} clashes with the screw helper link "
                                             f"of part {p.name!r}")
 
-
-def _slug(text: str) -> str:
-    s = "".join(c if c.isalnum() or c in "_-" else "_" for c in str(text).strip())
-    return s.strip("_") or "object"
 
 
 def _uri_base(mesh_uri: str, out_dir: Path) -> str:
@@ -397,20 +400,4 @@ def _metadata(obj, robot_name, urdf_name, fmt, mesh_files, prov) -> dict:
                       "mesh": mesh_files.get(link_name(p))})
     return {"format": METADATA_FORMAT, "name": robot_name, "category": obj.category,
             "urdf": urdf_name, "mesh_format": fmt, "summary": obj.summary(), "parts": parts,
-            "provenance": prov, "object_metadata": _jsonable(obj.metadata)}
-
-
-def _jsonable(value):
-    try:
-        json.dumps(value)
-        return value
-    except TypeError:
-        if isinstance(value, dict):
-            return {str(k): _jsonable(v) for k, v in value.items()}
-        if isinstance(value, (list, tuple)):
-            return [_jsonable(v) for v in value]
-        if isinstance(value, np.ndarray):
-            return value.tolist()
-        if isinstance(value, np.generic):
-            return value.item()
-        return str(value)
+            "provenance": prov, "object_metadata": jsonable(obj.metadata)}

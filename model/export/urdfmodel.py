@@ -153,11 +153,11 @@ def _floats(text, n, default, where) -> np.ndarray:
 
 
 def _origin(el, where) -> np.ndarray:
-    from .importer import _rpy_matrix
+    from model.core.objects import rpy_matrix
     T = np.eye(4)
     if el is None:
         return T
-    T[:3, :3] = _rpy_matrix(_floats(el.get("rpy"), 3, (0, 0, 0), where + " rpy"))
+    T[:3, :3] = rpy_matrix(_floats(el.get("rpy"), 3, (0, 0, 0), where + " rpy"))
     T[:3, 3] = _floats(el.get("xyz"), 3, (0, 0, 0), where + " xyz")
     return T
 

@@ -228,12 +228,12 @@ def export_usd(folder: os.PathLike, out: Optional[os.PathLike] = None, *,
     ``floating``: no fixed joint from the root link to the world.
     Raises ConvertError when the URDF cannot be read or the path has another suffix.
     """
-    from .urdf import _slug
+    from .urdf import object_slug
 
     src = Path(folder).expanduser()
     model = read_urdf_folder(src)
     if out is None:
-        out = (src if src.is_dir() else src.parent) / "usd" / f"{_slug(model.name)}.usd"
+        out = (src if src.is_dir() else src.parent) / "usd" / f"{object_slug(model.name)}.usd"
     out = Path(out).expanduser().resolve()
     if out.suffix.lower() not in USD_SUFFIXES:
         raise ConvertError(f"USD output must end in {', '.join(USD_SUFFIXES)}, got {out.name}")
