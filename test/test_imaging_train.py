@@ -23,7 +23,7 @@ def tiny_set(tmp_path_factory):
 
 def _run(root, trainable_blocks: int, steps: int, own_inputs: float = 0.0, multiscale=False,
          init="none", out=None, extra=(), trunk="", image_size=224, count_tokens="",
-         count_truth=0.0):
+         count_truth=0.0, resume=False):
     from model.articulation.config import preset
     from model.articulation.targets import StandInTargets
     from model.imaging.train import ImageRunConfig, ImageTrainConfig, train_image
@@ -38,8 +38,28 @@ def _run(root, trainable_blocks: int, steps: int, own_inputs: float = 0.0, multi
                                                image_size=image_size,
                                                count_tokens=count_tokens,
                                                count_truth=count_truth),
-                        targets=tg, progress=False, extra=list(extra))
+                        targets=tg, progress=False, extra=list(extra), resume=resume)
     return train_image(rc), tg, tc
+
+
+def test_image_training_resumes_and_checks_the_prior(tiny_set, tmp_path):
+    """--resume continues OUT/last.pt (step, history, time); the checkpoint records the
+    targets' prior fingerprint and the loader refuses it for another prior."""
+    from model.core.checkpoint import CheckpointError
+    from model.imaging.model import load_image_model
+    out = tmp_path / "res"
+    _run(tiny_set, 0, 3, out=out)
+    first = torch.load(out / "last.pt", weights_only=False)
+    path, tg, _ = _run(tiny_set, 0, 5, out=out, resume=True)
+    ck = torch.load(path, weights_only=False)
+    assert first["step"] == 3 and ck["step"] == 5 and "optimizer" not in ck
+    assert len(ck["history"]) == len(first["history"]) + 1 and ck["elapsed"] >= first["elapsed"]
+    assert ck["prior"] == tg.fingerprint == "stand-in"
+    assert load_image_model(path, prior="stand-in").am is not None
+    ck["prior"] = "0123456789abcdef"                # as if trained against another prior
+    torch.save(ck, tmp_path / "other.pt")
+    with pytest.raises(CheckpointError, match="another shape prior"):
+        load_image_model(tmp_path / "other.pt", prior="fedcba9876543210")
 
 
 def test_tiny_image_training_reduces_loss_and_round_trips(tiny_set):
