@@ -97,3 +97,129 @@ def test_lengths_ordered_and_wording_varies():
 def test_deterministic_for_rng():
     obj = synth.generate_object(seed=0, index=3)
     assert describe(obj, np.random.default_rng(5)) == describe(obj, np.random.default_rng(5))
+
+
+# --- spatial facts are true of the object -----------------------------------------------------
+def _spatial_objects():
+    return [synth.generate_object(seed=21, index=i, category=c)
+            for c in ("StorageFurniture", "StorageFurniture", "Safe", "Oven", "WashingMachine",
+                      "Bottle") for i in range(4)]
+
+
+@pytest.fixture(scope="module")
+def spatial_objects():
+    return _spatial_objects()
+
+
+def test_hinge_side_from_geometry_matches_the_generator(spatial_objects):
+    """The geometric hinge side equals the side the generator built the hinge on (its
+    'left' is the viewer's left, -y): one definition of left everywhere."""
+    from model.data.describe import hinge_side, opening_direction
+    assert vocab.SIDE_DIRECTIONS["left"] == (0.0, -1.0, 0.0)
+    seen = set()
+    for obj in spatial_objects:
+        meta = obj.metadata["parts"]
+        for i, p in enumerate(obj.parts):
+            side = meta[p.name].get("side")
+            if p.label in ("door", "lid") and side:
+                assert hinge_side(obj, i) == side, (obj.name, p.name)
+                want = {"left": "sideways", "right": "sideways", "bottom": "down", "top": "up",
+                        "back": "up"}[side]
+                assert opening_direction(obj, i) == want, (obj.name, p.name)
+                seen.add(side)
+                # the hinge line is on that side of the part's box
+                d = p.joint.origin - p.bbox_center
+                assert float(np.dot(d, vocab.SIDE_DIRECTIONS[side])) > 0
+    assert {"left", "right", "bottom", "back"} <= seen
+
+
+def test_arrangement_matches_the_generator_cells(spatial_objects):
+    """Rows / columns of drawers and doors agree with the generator's bands and columns."""
+    from model.data.describe import spatial_summary
+    checked = 0
+    for obj in spatial_objects:
+        if obj.category != "StorageFurniture":
+            continue
+        meta = obj.metadata["parts"]
+        sp = spatial_summary(obj)
+        for label in ("drawer", "door"):
+            cells = [(meta[p.name]["band"], meta[p.name]["col"]) for p in obj.parts
+                     if p.label == label]
+            if len(cells) < 2:
+                continue
+            bands = {b for b, _ in cells}
+            f = sp[label]
+            assert f["rows"] == len(bands), (obj.name, label, f, cells)
+            if f["layout"] == "row":
+                assert len(bands) == 1
+            if f["layout"] == "column":
+                assert len(cells) == len(bands)
+            if f["layout"] == "grid":
+                assert all(sum(b == x for b, _ in cells) == f["columns"] for x in bands)
+            checked += 1
+    assert checked >= 3
+
+
+def test_description_phrases_are_true(spatial_objects):
+    """What the descriptions say, read back by the prompt parser, checked against the raw
+    object (part centres, the generator's hinge sides and cells), not against the summary."""
+    from model.metrics.prompt_parse import parse_prompt
+    seen: set = set()
+    for k, obj in enumerate(spatial_objects):
+        body = obj.parts[obj.root]
+        meta = obj.metadata["parts"]
+        for texts in describe(obj, np.random.default_rng(k)).values():
+            for t in texts:
+                e = parse_prompt(t)
+                tl = t.lower()
+                if re.search(r"\ba pair of (\w+ )?doors\b", tl):
+                    assert sum(p.label == "door" for p in obj.parts) == 2, t
+                    seen.add("pair")
+                for label, facts in e.spatial.items():
+                    parts = [p for p in obj.parts if p.label == label]
+                    if facts.get("hpos") == ["left"]:      # the viewer's left is -y
+                        assert all(p.bbox_center[1] < body.bbox_center[1] for p in parts), t
+                        seen.add("left")
+                    if facts.get("hpos") == ["right"]:
+                        assert all(p.bbox_center[1] > body.bbox_center[1] for p in parts), t
+                        seen.add("right")
+                    if "hinge" in facts and all("side" in meta[p.name] for p in parts):
+                        assert facts["hinge"] == sorted({meta[p.name]["side"] for p in parts}), t
+                        seen.add("hinge")
+                    if facts.get("columns") == 2 and obj.category == "StorageFurniture":
+                        cols = {meta[p.name]["col"] for p in parts}
+                        assert len(cols) == 2, t
+                        seen.add("two columns")
+                    if facts.get("layout") == "column":
+                        zs = sorted(p.bbox_center[2] for p in parts)
+                        hs = [p.bbox_size[2] for p in parts]
+                        assert all(b - a > 0.5 * min(hs) for a, b in zip(zs, zs[1:])), t
+                        seen.add("stacked")
+                    for other in facts.get("above", []):
+                        top_of_other = max(p.bbox_center[2] + p.bbox_size[2] / 2
+                                           for p in obj.parts if p.label == other)
+                        assert all(p.bbox_center[2] > top_of_other for p in parts), t
+                        seen.add("above")
+    assert {"pair", "hinge", "stacked", "above"} <= seen, seen
+
+
+def test_everyday_names_fit_the_object():
+    from model.data.describe import everyday_names
+    for i in range(30):
+        obj = synth.generate_object(seed=5, index=i)
+        names = everyday_names(obj)
+        labels = [p.label for p in obj.parts]
+        if "dresser" in names:
+            assert "drawer" in labels and "door" not in labels
+        if "top loader" in names:
+            assert obj.metadata.get("loading") == "top"
+        if "front-loader" in names:
+            assert obj.metadata.get("loading") == "front"
+        if "range" in names:
+            assert labels.count("knob") >= 4
+        if "wall oven" in names:
+            assert any(obj.metadata["parts"][p.name].get("side") in ("left", "right")
+                       for p in obj.parts if p.label == "door")
+        if "locker" in names:
+            assert "drawer" not in labels
+        assert all(n in vocab.CATEGORY_SYNONYMS[obj.category] for n in names), names

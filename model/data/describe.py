@@ -59,7 +59,11 @@ def hinge_side(obj: ArticulatedObject, i: int) -> Optional[str]:
     c = np.asarray(p.bbox_center, float)
     d = p.joint.origin - c
     d = d - (d @ a) * a                      # centre -> axis line, perpendicular to the axis
-    if np.linalg.norm(d) < 0.2 * max(float(np.max(np.abs(p.bbox_size))), 1e-6):
+    n = float(np.linalg.norm(d))
+    # an edge hinge sits about half the box's extent (along d) from the centre; an axis
+    # through the part (a knob's) much nearer
+    half = 0.5 * float(np.abs(p.bbox_size) @ np.abs(d / max(n, 1e-12)))
+    if n < 0.5 * max(half, 1e-6):
         return None
     return vocab.side_of(d)
 

@@ -32,6 +32,13 @@ def _eval_parser() -> argparse.ArgumentParser:
     p.add_argument("--freeform", type=int, default=None, dest="n_freeform",
                    help="how many free-form prompts (default: all shipped ones)")
     p.add_argument("--freeform-file", default=None)
+    p.add_argument("--freeform-only", action="store_true",
+                   help="only the free-form set's structure alignment (decoding + layout "
+                        "refinement, no shapes, no dataset needed): the table by category, by "
+                        "asked-for part count and by spatial fact")
+    p.add_argument("--seeds", type=int, default=1,
+                   help="--freeform-only: seeds per prompt (seed, seed+1, ...)")
+    p.add_argument("--json", default=None, help="--freeform-only: write every row here")
     p.add_argument("--preset", choices=sorted(EVAL_PRESETS), default="full",
                    help="eval sizes: tiny = CI smoke run, full = DESIGN §7 sizes")
     p.add_argument("--out", default="eval_out")
@@ -82,7 +89,9 @@ def eval_main(argv: list[str]) -> int:
     args = _eval_parser().parse_args(argv)
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
                         format="%(levelname)s %(name)s: %(message)s")
-    from .evaluate import EvalConfig, run_eval
+    if args.freeform_only:
+        return _freeform_main(args)
+    from .evaluate import EvalConfig, freeform_table, run_eval
     data = args.data or _default_data()
     if not data:
         print("artformer eval: give --data DIR (a prepared dataset, `artformer data prepare`)",
@@ -110,9 +119,35 @@ def eval_main(argv: list[str]) -> int:
                      plots=not args.no_plots, progress=True, **kw)
     results = run_eval(cfg)
     print((Path(cfg.out) / "results.md").read_text())
+    for row in results["rows"]:
+        if row.get("alignment_freeform_breakdown"):
+            print(f"\nFree-form alignment of {row['name']}:\n")
+            print(freeform_table(row["alignment_freeform_breakdown"]))
     print(f"wrote {cfg.out}/results.json, results.md"
           + (", " + ", ".join(Path(f).name for f in results.get("figures", [])) if results.get("figures") else "")
           + f" in {results['seconds']:.0f} s")
+    return 0
+
+
+def _freeform_main(args) -> int:
+    from .evaluate import FreeformConfig, freeform_alignment
+    cfg = FreeformConfig(checkpoint=args.checkpoint, prompts_file=args.freeform_file,
+                         seeds=args.seeds, seed=args.seed, limit=args.n_freeform,
+                         structure_temperature=args.structure_temperature,
+                         follow_plan=args.follow_plan, progress=sys.stderr.isatty())
+    try:
+        res = freeform_alignment(cfg)
+    except (ValueError, FileNotFoundError) as e:
+        print(f"artformer eval: {e}", file=sys.stderr)
+        return 2
+    print(f"Free-form structure alignment: {res['n_prompts']} prompts x {cfg.seeds} seed(s), "
+          f"{res['checkpoint']}, T = {res['structure_temperature']}, "
+          f"plan {'on' if res['follow_plan'] else 'off'} ({res['seconds']:.0f} s)\n")
+    print(res["table"])
+    if args.json:
+        Path(args.json).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.json).write_text(json.dumps(res, indent=1))
+        print(f"wrote {args.json}")
     return 0
 
 
@@ -208,6 +243,9 @@ def main(argv: list[str]) -> int:
     if not argv:
         print("usage: artformer eval|bench|audit [...]", file=sys.stderr)
         return 2
+    if argv[:2] == ["eval", "diversity"]:
+        from .diversity import main as diversity_main
+        return diversity_main(argv[2:])
     if argv[0] == "eval":
         return eval_main(argv[1:])
     if argv[0] == "bench":

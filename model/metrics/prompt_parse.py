@@ -664,8 +664,7 @@ def _attach(facts: list[_Fact], toks: list[_Tok], earlier: list[str],
     """Attach each fact to the part it describes and merge it into ``spatial``; returns the
     labels a hinge or opening fact was said of (they turn on a hinge: revolute)."""
     hinged: list[str] = []
-    relation_objects = {(f.relation_to, f.end) for f in facts if f.relation_to}
-    parts = [t for t in toks if t.kind == "PART" and (t.value, t.end) not in relation_objects]
+    parts = [t for t in toks if t.kind == "PART"]
     for f in facts:
         allowed = HINGED if f.key in ("hinge", "opens") else \
             ARRANGED if f.key in ("layout", "rows", "columns") else vocab.COUNTABLE_LABELS
