@@ -65,8 +65,7 @@ def test_shipped_text_model_outputs_unchanged():
     assert golden_text_digest() == GOLDEN_TEXT
 
 
-@pytest.mark.slow     # loads the shipped image model (~15 s)
-def test_shipped_image_model_outputs_unchanged():
+def test_shipped_image_model_outputs_unchanged():        # ~3 s
     assert golden_image_digest() == GOLDEN_IMAGE
 
 

@@ -19,6 +19,7 @@ from typing import Optional
 import numpy as np
 import torch
 
+from model.core.files import atomic_write_bytes
 from model.data import format as fmt
 from model.data.vocab import semantic_text
 
@@ -74,7 +75,7 @@ def _part_targets(root: Path, recs: list[fmt.ObjectRecord], targets, predict_z: 
             import io
             buf = io.BytesIO()
             torch.save({"key": key, "geo": cache}, buf)
-            fmt.atomic_write_bytes(cache_path, buf.getvalue())
+            atomic_write_bytes(cache_path, buf.getvalue())
     return cache
 
 

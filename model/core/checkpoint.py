@@ -33,6 +33,8 @@ from typing import Any, Iterable, Optional, Union
 
 import torch
 
+from .files import atomic_write_bytes
+
 log = logging.getLogger(__name__)
 
 FORMAT = 2
@@ -102,7 +104,6 @@ def write_checkpoint(path: Union[str, os.PathLike], meta: CheckpointMeta, payloa
     ckpt = {**payload, **meta.header(), "format": FORMAT}
     buf = io.BytesIO()
     torch.save(ckpt, buf)
-    from model.data.format import atomic_write_bytes
     atomic_write_bytes(path, buf.getvalue())
 
 
