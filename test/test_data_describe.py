@@ -71,6 +71,8 @@ def test_descriptions_agree_with_summary(cat, i):
         for jt in movable_types:
             words = [w for (lab, j), ws in vocab.LABEL_MOTION_SYNONYMS.items() if j == jt for w in ws]
             words += list(vocab.MOTION_SYNONYMS[jt]) + list(vocab.MOTION_ADJECTIVES[jt])
+            if jt == "revolute":     # "opens downward" says how a hinged part moves
+                words += [w for ws in vocab.OPENING_PHRASES.values() for w in ws]
             words += ["swing on a hinge", "pivot", "rotate on a hinge", "slide", "translate", "spin freely",
                       "turn without limit", "rotate continuously", "screw on and off", "twist off"]
             assert any(w in tl or _pluralise_verb(w) in tl for w in words), (jt, t)

@@ -8,6 +8,11 @@ is part of the data contract, so entries are only ever added, never renamed.
 * ``CATEGORIES``: the six object categories of the paper (PartNet-Mobility names).
 * ``CATEGORY_SYNONYMS`` / ``PART_SYNONYMS`` / ``PART_PLURALS`` / ``MOTION_SYNONYMS``: the
   wordings used in descriptions. The first entry of each list is the canonical wording.
+* ``SIDE_DIRECTIONS`` / ``side_of``: the one definition of "left" / "right" (the viewer's,
+  facing the object's front: left = -y) and of top / bottom / front / back.
+* ``OPENING_PHRASES``, ``ROW_PHRASES``, ``COLUMN_PHRASES``, ``ROLE_NAMES``: wordings
+  of the spatial facts and part roles of the descriptions (everyday object names are in
+  ``CATEGORY_SYNONYMS``; ``model.data.describe.everyday_names`` says when each fits).
 * ``PARTNET_LABEL_MAP``: real PartNet-Mobility semantic names → our labels.
 * ``semantic_text(category, label)`` → "storage furniture, drawer" (the part's semantic
   condition text, DESIGN §4.2).
@@ -166,37 +171,17 @@ SIDE_WORDS: dict[str, tuple[str, ...]] = {
 # --- spatial facts (model.data.describe.spatial_summary) --------------------------------------
 # Direction a door or lid opens (where its free edge goes): "down" (a drop-down oven door),
 # "up" (a lid, a top-hinged flap), "sideways" (a side-hinged door).
-# Each phrase completes "the <part> ..." and also says it turns on a hinge.
+# Each phrase completes "the <part> ..." (said of a part that turns on a hinge).
 OPENING_PHRASES: dict[str, tuple[str, ...]] = {
-    "down": ("swings down", "drops down", "folds down", "swings open downward"),
-    "up": ("swings up", "flips up", "swings open upward", "lifts up on its hinge"),
-    "sideways": ("swings open sideways", "swings to the side", "swings sideways"),
+    "down": ("swings down", "drops down", "folds down", "swings open downward", "opens downward"),
+    "up": ("swings up", "flips up", "swings open upward", "lifts up on its hinge", "opens upward"),
+    "sideways": ("swings open sideways", "swings to the side", "swings sideways", "opens sideways"),
 }
 # Arrangement of a group of like parts ("layout" of the summary): a single row, a single column
 # (one above the other) or a grid of rows x columns.
 ROW_PHRASES: tuple[str, ...] = ("side by side", "in a row", "next to each other", "in a single row")
 COLUMN_PHRASES: tuple[str, ...] = ("stacked", "stacked one above the other", "one above the other",
                                    "in a single column", "stacked vertically")
-# Everyday names a description may use for an object, each with the geometric condition it
-# needs (model.data.describe._everyday_names decides; these are the words).
-EVERYDAY_NAMES: dict[str, tuple[str, ...]] = {
-    "dresser": ("dresser", "chest of drawers"),          # drawers only
-    "nightstand": ("nightstand", "bedside table", "bedside cabinet"),   # small and low
-    "sideboard": ("sideboard", "credenza"),               # low and wide
-    "wardrobe": ("wardrobe", "armoire"),                  # tall, doors
-    "locker": ("locker",),                                # tall, narrow, doors only
-    "filing cabinet": ("filing cabinet", "file cabinet"), # one column of drawers, narrow
-    "small safe": ("microwave-sized safe", "small safe", "compact safe"),
-    "range": ("range", "kitchen range"),                  # four or more knobs
-    "wall oven": ("wall oven",),                          # side-hinged door
-    "front-loader": ("front-loader", "front-loading washer", "front-loading washing machine"),
-    "top-loader": ("top loader", "top-loader", "top-loading washer"),
-    "flip-top bottle": ("flip-top bottle", "sports bottle"),
-    "screw-top bottle": ("screw-top bottle",),
-    "thumb drive": ("thumb drive", "flash drive", "usb stick"),
-    "swivel usb": ("swivel usb stick", "swivel flash drive"),
-}
-
 # Names of a part by its role, used only where the role is certain: (category, label) -> words.
 ROLE_NAMES: dict[tuple[str, str], tuple[str, ...]] = {
     ("WashingMachine", "dial"): ("program dial", "program selector"),
