@@ -138,6 +138,32 @@ def find_urdf(folder: os.PathLike) -> Path:
     return found[0].resolve()
 
 
+def resolve_mesh_path(filename: str, urdf_dir: Path) -> Path:
+    """Absolute path of a URDF mesh reference (file://, package://, absolute or relative).
+
+    ``package://pkg/rest`` is looked up in the ament index (``AMENT_PREFIX_PATH``
+    ``share/pkg/rest``), then beside the URDF (``rest`` and its tail after any folder named
+    like the URDF folder, then ``meshes/<file name>``)."""
+    from urllib.parse import unquote, urlparse
+    urdf_dir = Path(urdf_dir)
+    if filename.startswith("file://"):
+        return Path(unquote(urlparse(filename).path))
+    if filename.startswith("package://"):
+        rest = filename[len("package://"):]
+        pkg, _, sub = rest.partition("/")
+        cands = []
+        for prefix in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep):
+            if prefix:
+                cands.append(Path(prefix) / "share" / pkg / sub)
+        cands += [urdf_dir / sub, urdf_dir / "meshes" / Path(sub).name, urdf_dir / Path(sub).name]
+        for c in cands:
+            if c.exists():
+                return c
+        return cands[-3] if len(cands) >= 3 else urdf_dir / sub
+    p = Path(filename)
+    return p if p.is_absolute() else (urdf_dir / p)
+
+
 def _floats(text, n, default, where) -> np.ndarray:
     if text is None:
         return np.asarray(default, dtype=np.float64)
@@ -162,56 +188,149 @@ def _origin(el, where) -> np.ndarray:
     return T
 
 
-def _geom(el, path: Path, materials: dict, where: str) -> Optional[Geom]:
-    from .importer import resolve_mesh_path
+def _material(el, materials: dict, where: str) -> tuple[Optional[tuple], str]:
+    mat = el.find("material")
+    if mat is None:
+        return None, ""
+    name = mat.get("name", "")
+    col = mat.find("color")
+    if col is not None:
+        return tuple(_floats(col.get("rgba"), 4, (0.6, 0.6, 0.6, 1), where + " rgba")), name
+    return materials.get(name), name
+
+
+def _geom(el, path: Path, materials: dict, where: str, lenient: bool) -> Optional[Geom]:
     g = el.find("geometry")
     if g is None:
         return None
     origin = _origin(el.find("origin"), where)
-    name = el.get("name", "")
-    rgba, mat_name = None, ""
-    mat = el.find("material")
-    if mat is not None:
-        mat_name = mat.get("name", "")
-        col = mat.find("color")
-        if col is not None:
-            rgba = tuple(_floats(col.get("rgba"), 4, (0.6, 0.6, 0.6, 1), where + " rgba"))
-        elif mat_name in materials:
-            rgba = materials[mat_name]
+    rgba, mat_name = _material(el, materials, where)
+    kw = dict(name=el.get("name", ""), rgba=rgba, material=mat_name)
     if g.find("mesh") is not None:
         m = g.find("mesh")
         fname = m.get("filename", "")
         file = resolve_mesh_path(fname, path.parent)
         if not file.is_file():
+            if lenient:
+                log.warning("%s: %s: mesh %s missing, skipped", path, where, fname)
+                return None
             raise ConvertError(f"{path}: {where}: mesh file not found: {fname} (looked for {file})")
-        return Geom("mesh", origin, name, mesh=file.resolve(),
-                    scale=_floats(m.get("scale"), 3, (1, 1, 1), where + " scale"),
-                    rgba=rgba, material=mat_name)
+        return Geom("mesh", origin, mesh=file.resolve(),
+                    scale=_floats(m.get("scale"), 3, (1, 1, 1), where + " scale"), **kw)
     if g.find("box") is not None:
-        return Geom("box", origin, name, size=_floats(g.find("box").get("size"), 3, (0, 0, 0),
-                                                      where + " box size"),
-                    rgba=rgba, material=mat_name)
+        return Geom("box", origin, size=_floats(g.find("box").get("size"), 3, (0, 0, 0),
+                                                where + " box size"), **kw)
     if g.find("cylinder") is not None:
         c = g.find("cylinder")
         size = np.array([float(c.get("radius", 0)), float(c.get("length", 0))])
-        return Geom("cylinder", origin, name, size=size, rgba=rgba, material=mat_name)
+        return Geom("cylinder", origin, size=size, **kw)
     if g.find("sphere") is not None:
-        return Geom("sphere", origin, name, size=np.array([float(g.find("sphere").get("radius", 0))]),
-                    rgba=rgba, material=mat_name)
+        return Geom("sphere", origin, size=np.array([float(g.find("sphere").get("radius", 0))]),
+                    **kw)
     log.warning("%s: %s has no supported geometry; skipped", path, where)
     return None
 
 
-def read_urdf(path: os.PathLike) -> URDFModel:
-    """Parse a URDF file; raises ConvertError naming what is wrong."""
+def _link(el, path: Path, materials: dict, lenient: bool) -> Link:
+    name = el.get("name")
+    link = Link(name)
+    inert = el.find("inertial")
+    if inert is not None:
+        link.com = _origin(inert.find("origin"), f"link {name} inertial")
+        mel = inert.find("mass")
+        link.mass = float(mel.get("value", 0.0)) if mel is not None else 0.0
+        iel = inert.find("inertia")
+        if iel is not None:
+            g = {k: float(iel.get(k, 0.0)) for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")}
+            link.inertia = np.array([[g["ixx"], g["ixy"], g["ixz"]],
+                                     [g["ixy"], g["iyy"], g["iyz"]],
+                                     [g["ixz"], g["iyz"], g["izz"]]])
+    for role, out in (("visual", link.visuals), ("collision", link.collisions)):
+        for k, v in enumerate(el.findall(role)):
+            geom = _geom(v, path, materials, f"link {name} {role} {k}", lenient)
+            if geom is not None:
+                out.append(geom)
+    return link
+
+
+def _limits(j: Joint, lim, path: Path, lenient: bool) -> None:
+    """Range, effort and velocity of ``j`` from its <limit> (continuous joints: the range
+    when the URDF gives one, else one turn either way)."""
+    if lim is not None:
+        j.effort, j.velocity = float(lim.get("effort", 0.0)), float(lim.get("velocity", 0.0))
+    if j.type == "continuous":
+        lo, hi = (float(lim.get("lower", 0.0)), float(lim.get("upper", 0.0))) \
+            if lim is not None else (0.0, 0.0)
+        j.lower, j.upper = (lo, hi) if hi > lo else (-math.pi, math.pi)
+        return
+    if j.type == "fixed":
+        return
+    if lim is None:
+        if lenient:
+            return
+        raise ConvertError(f"{path}: {j.type} joint {j.name!r} has no <limit>")
+    j.lower, j.upper = float(lim.get("lower", 0.0)), float(lim.get("upper", 0.0))
+    if not (math.isfinite(j.lower) and math.isfinite(j.upper)):
+        raise ConvertError(f"{path}: joint {j.name!r} has a non-finite limit")
+    if j.lower > j.upper:
+        raise ConvertError(f"{path}: joint {j.name!r} limits inverted "
+                           f"(lower {j.lower} > upper {j.upper})")
+
+
+def _joint(el, path: Path, links: dict, lenient: bool) -> Optional[Joint]:
+    name, jtype = el.get("name"), el.get("type")
+    if lenient:
+        jtype = (jtype or "fixed").lower()
+    p_el, c_el = el.find("parent"), el.find("child")
+    if p_el is None or c_el is None:
+        if lenient:
+            log.warning("%s: joint %s without parent/child skipped", path, name)
+            return None
+        raise ConvertError(f"{path}: joint {name!r} needs <parent> and <child>")
+    if jtype not in ("fixed", *MOVING_TYPES):
+        raise ConvertError(f"{path}: joint {name!r} has unsupported joint type {jtype!r}; "
+                           f"supported: continuous, fixed, prismatic, revolute")
+    parent, child = p_el.get("link"), c_el.get("link")
+    for ln in (parent, child):
+        if ln not in links:
+            raise ConvertError(f"{path}: joint {name!r} names unknown link {ln!r}")
+    j = Joint(name, jtype, parent, child, _origin(el.find("origin"), f"joint {name} origin"))
+    if jtype != "fixed":
+        axis = _floats(el.find("axis").get("xyz") if el.find("axis") is not None else None,
+                       3, (1, 0, 0), f"joint {name} axis")
+        n = np.linalg.norm(axis)
+        if n < 1e-12:
+            raise ConvertError(f"{path}: joint {name!r} has a zero axis")
+        j.axis = axis / n
+    _limits(j, el.find("limit"), path, lenient)
+    return j
+
+
+def _parse(path: Path, lenient: bool):
     from lxml import etree
-    path = Path(path)
+    if not path.is_file():
+        raise ConvertError(f"URDF file not found: {path}")
+    parser = etree.XMLParser(remove_comments=True, recover=lenient)
     try:
-        root = etree.parse(str(path)).getroot()
+        root = etree.parse(str(path), parser).getroot()
     except (OSError, etree.XMLSyntaxError) as e:
-        raise ConvertError(f"cannot read URDF {path}: {e}") from None
+        raise ConvertError(f"malformed URDF XML in {path}: {e}") from None
+    if root is None:
+        raise ConvertError(f"{path}: empty URDF")
     if root.tag != "robot":
         raise ConvertError(f"{path}: root element is <{root.tag}>, expected <robot>")
+    return root
+
+
+def read_urdf(path: os.PathLike, *, lenient: bool = False) -> URDFModel:
+    """Parse a URDF file; raises ConvertError naming what is wrong.
+
+    ``lenient`` (datasets such as PartNet-Mobility): broken XML is recovered where possible,
+    a missing mesh file or a joint without parent / child is skipped with a warning, joint
+    types are read case-insensitively and a revolute / prismatic joint without <limit> gets
+    the range (0, 0)."""
+    path = Path(path)
+    root = _parse(path, lenient)
     materials = {}
     for m in root.findall("material"):
         col = m.find("color")
@@ -222,67 +341,30 @@ def read_urdf(path: os.PathLike) -> URDFModel:
     for el in root.findall("link"):
         name = el.get("name")
         if not name or name in links:
-            raise ConvertError(f"{path}: a link has no name or a duplicate name ({name!r})")
-        link = Link(name)
-        inert = el.find("inertial")
-        if inert is not None:
-            link.com = _origin(inert.find("origin"), f"link {name} inertial")
-            mel = inert.find("mass")
-            link.mass = float(mel.get("value", 0.0)) if mel is not None else 0.0
-            iel = inert.find("inertia")
-            if iel is not None:
-                g = {k: float(iel.get(k, 0.0)) for k in ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")}
-                link.inertia = np.array([[g["ixx"], g["ixy"], g["ixz"]],
-                                         [g["ixy"], g["iyy"], g["iyz"]],
-                                         [g["ixz"], g["iyz"], g["izz"]]])
-        for k, v in enumerate(el.findall("visual")):
-            geom = _geom(v, path, materials, f"link {name} visual {k}")
-            if geom is not None:
-                link.visuals.append(geom)
-        for k, c in enumerate(el.findall("collision")):
-            geom = _geom(c, path, materials, f"link {name} collision {k}")
-            if geom is not None:
-                link.collisions.append(geom)
-        links[name] = link
+            raise ConvertError(f"{path}: a link has no name or a duplicate link name ({name!r})")
+        links[name] = _link(el, path, materials, lenient)
     if not links:
         raise ConvertError(f"{path}: the URDF has no links")
-    joints, children = [], set()
+    joints, parent_joint = [], {}
     for el in root.findall("joint"):
-        name, jtype = el.get("name"), el.get("type")
-        if jtype not in ("fixed", *MOVING_TYPES):
-            raise ConvertError(f"{path}: joint {name!r} has type {jtype!r}; the converters "
-                               f"support fixed, revolute, prismatic and continuous")
-        parent = el.find("parent").get("link") if el.find("parent") is not None else None
-        child = el.find("child").get("link") if el.find("child") is not None else None
-        if parent not in links or child not in links:
-            raise ConvertError(f"{path}: joint {name!r} connects unknown links {parent!r} -> {child!r}")
-        if child in children:
-            raise ConvertError(f"{path}: link {child!r} has two parent joints")
-        children.add(child)
-        j = Joint(name, jtype, parent, child, _origin(el.find("origin"), f"joint {name} origin"))
-        if jtype != "fixed":
-            axis = _floats(el.find("axis").get("xyz") if el.find("axis") is not None else None,
-                           3, (1, 0, 0), f"joint {name} axis")
-            n = np.linalg.norm(axis)
-            if n < 1e-12:
-                raise ConvertError(f"{path}: joint {name!r} has a zero axis")
-            j.axis = axis / n
-        lim = el.find("limit")
-        if lim is not None:
-            j.lower, j.upper = float(lim.get("lower", 0.0)), float(lim.get("upper", 0.0))
-            j.effort, j.velocity = float(lim.get("effort", 0.0)), float(lim.get("velocity", 0.0))
-        elif jtype in ("revolute", "prismatic"):
-            raise ConvertError(f"{path}: {jtype} joint {name!r} has no <limit>")
-        if jtype == "continuous":
-            j.lower, j.upper = -math.pi, math.pi
+        j = _joint(el, path, links, lenient)
+        if j is None:
+            continue
+        if j.child in parent_joint:
+            raise ConvertError(f"{path}: link {j.child!r} has two parent joints "
+                               f"({parent_joint[j.child]!r} and {j.name!r})")
+        parent_joint[j.child] = j.name
         joints.append(j)
-    roots = [n for n in links if n not in children]
+    roots = [n for n in links if n not in parent_joint]
     if len(roots) != 1:
-        raise ConvertError(f"{path}: expected one root link, found {roots}")
+        if not roots:
+            raise ConvertError(f"{path}: the joints form a cycle (no root link)")
+        raise ConvertError(f"{path}: expected one root link, found {len(roots)}: {roots}")
     model = URDFModel(root.get("name") or path.stem, path, links, joints, roots[0], materials)
-    if len(model.rest_link_frames()) != len(links):
-        raise ConvertError(f"{path}: the joints do not connect every link to the root "
-                           f"{roots[0]!r} (a cycle?)")
+    frames = model.rest_link_frames()
+    if len(frames) != len(links):
+        raise ConvertError(f"{path}: the joints form a cycle through links "
+                           f"{sorted(set(links) - set(frames))}")
     meta = path.parent / "metadata.json"
     if meta.exists():
         try:
