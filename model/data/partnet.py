@@ -38,7 +38,7 @@ from typing import Iterator, Optional
 import numpy as np
 
 from model.core.files import jsonable
-from model.core.objects import ArticulatedObject, Joint, JointType, Part, rpy_matrix
+from model.core.objects import ArticulatedObject, Joint, JointType, Part
 from model.data import vocab
 from model.data.format import atomic_write_bytes, atomic_write_json
 
@@ -193,47 +193,20 @@ class PartNetFormatError(ValueError):
     """The folder is not a readable PartNet-Mobility object; the message says what is missing."""
 
 
-def _parse_origin(el) -> np.ndarray:
-    T = np.eye(4)
-    if el is None:
-        return T
-    xyz = [float(v) for v in (el.get("xyz") or "0 0 0").split()]
-    rpy = [float(v) for v in (el.get("rpy") or "0 0 0").split()]
-    T[:3, :3] = rpy_matrix(rpy)
-    T[:3, 3] = xyz
-    return T
-
-
 def _read_urdf(path: Path) -> tuple[dict, list[dict]]:
-    from lxml import etree
+    """Link name -> [(visual origin, mesh file)] and the joints as dicts, from the lenient
+    URDF parser (model.export.urdfmodel.read_urdf)."""
+    from model.export.urdfmodel import ConvertError, read_urdf
     try:
-        root = etree.parse(str(path), etree.XMLParser(remove_comments=True, recover=True)).getroot()
-    except (etree.XMLSyntaxError, OSError) as e:
-        raise PartNetFormatError(f"{path}: cannot parse URDF: {e}") from e
-    if root is None:
-        raise PartNetFormatError(f"{path}: empty URDF")
-    links: dict[str, list[tuple[np.ndarray, str]]] = {}
-    for ln in root.findall("link"):
-        vis = []
-        for v in ln.findall("visual"):
-            mesh = v.find("geometry/mesh")
-            if mesh is not None and mesh.get("filename"):
-                vis.append((_parse_origin(v.find("origin")), mesh.get("filename")))
-        links[ln.get("name")] = vis
-    joints = []
-    for j in root.findall("joint"):
-        par, ch = j.find("parent"), j.find("child")
-        if par is None or ch is None:
-            log.warning("%s: joint %s without parent/child skipped", path, j.get("name"))
-            continue
-        ax = j.find("axis")
-        axis = np.array([float(v) for v in ax.get("xyz").split()]) if ax is not None and ax.get("xyz") else np.array([1.0, 0, 0])
-        lim = j.find("limit")
-        lo = float(lim.get("lower", 0.0)) if lim is not None else 0.0
-        hi = float(lim.get("upper", 0.0)) if lim is not None else 0.0
-        joints.append({"name": j.get("name"), "type": (j.get("type") or "fixed").lower(),
-                       "parent": par.get("link"), "child": ch.get("link"),
-                       "origin": _parse_origin(j.find("origin")), "axis": axis, "lower": lo, "upper": hi})
+        model = read_urdf(path, lenient=True)
+    except ConvertError as e:
+        raise PartNetFormatError(str(e)) from None
+    links = {name: [(g.origin if np.allclose(g.scale, 1.0) else g.origin @ np.diag([*g.scale, 1.0]),
+                     str(g.mesh)) for g in link.visuals if g.kind == "mesh"]
+             for name, link in model.links.items()}
+    joints = [{"name": j.name, "type": j.type, "parent": j.parent, "child": j.child,
+               "origin": j.origin, "axis": j.axis, "lower": j.lower, "upper": j.upper}
+              for j in model.joints]
     return links, joints
 
 

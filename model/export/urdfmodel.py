@@ -272,7 +272,9 @@ def _limits(j: Joint, lim, path: Path, lenient: bool) -> None:
     j.lower, j.upper = float(lim.get("lower", 0.0)), float(lim.get("upper", 0.0))
     if not (math.isfinite(j.lower) and math.isfinite(j.upper)):
         raise ConvertError(f"{path}: joint {j.name!r} has a non-finite limit")
-    if j.lower > j.upper:
+    if j.lower > j.upper and lenient:
+        j.lower, j.upper = j.upper, j.lower
+    elif j.lower > j.upper:
         raise ConvertError(f"{path}: joint {j.name!r} limits inverted "
                            f"(lower {j.lower} > upper {j.upper})")
 
@@ -287,6 +289,9 @@ def _joint(el, path: Path, links: dict, lenient: bool) -> Optional[Joint]:
             log.warning("%s: joint %s without parent/child skipped", path, name)
             return None
         raise ConvertError(f"{path}: joint {name!r} needs <parent> and <child>")
+    if jtype not in ("fixed", *MOVING_TYPES) and lenient:
+        log.info("%s: %s joint %s read as fixed", path, jtype, name)
+        jtype = "fixed"
     if jtype not in ("fixed", *MOVING_TYPES):
         raise ConvertError(f"{path}: joint {name!r} has unsupported joint type {jtype!r}; "
                            f"supported: continuous, fixed, prismatic, revolute")
@@ -299,9 +304,13 @@ def _joint(el, path: Path, links: dict, lenient: bool) -> Optional[Joint]:
         axis = _floats(el.find("axis").get("xyz") if el.find("axis") is not None else None,
                        3, (1, 0, 0), f"joint {name} axis")
         n = np.linalg.norm(axis)
-        if n < 1e-12:
+        if n < 1e-12 and lenient:
+            log.info("%s: joint %s has a zero axis; read as fixed", path, name)
+            j.type = "fixed"
+        elif n < 1e-12:
             raise ConvertError(f"{path}: joint {name!r} has a zero axis")
-        j.axis = axis / n
+        else:
+            j.axis = axis / n
     _limits(j, el.find("limit"), path, lenient)
     return j
 
@@ -327,8 +336,9 @@ def read_urdf(path: os.PathLike, *, lenient: bool = False) -> URDFModel:
 
     ``lenient`` (datasets such as PartNet-Mobility): broken XML is recovered where possible,
     a missing mesh file or a joint without parent / child is skipped with a warning, joint
-    types are read case-insensitively and a revolute / prismatic joint without <limit> gets
-    the range (0, 0)."""
+    types are read case-insensitively, an unsupported type (floating, planar) or a zero axis
+    is read as fixed, inverted limits are swapped and a revolute / prismatic joint without
+    <limit> gets the range (0, 0)."""
     path = Path(path)
     root = _parse(path, lenient)
     materials = {}
