@@ -517,11 +517,11 @@ def _cap_first(s: str) -> str:
     return s[:1].upper() + s[1:]
 
 
-def _compound(rng, groups) -> Optional[tuple[str, int]]:
+def _compound(rng, groups) -> Optional[str]:
     """'three-drawer' for the first group when it is drawers or doors (a quarter of the time)."""
     if groups and groups[0][0] in ("drawer", "door") and 2 <= groups[0][1] <= 12 \
             and rng.random() < 0.25:
-        return f"{vocab.number_word(groups[0][1])}-{groups[0][0]}", 0
+        return f"{vocab.number_word(groups[0][1])}-{groups[0][0]}"
     return None
 
 
@@ -545,7 +545,7 @@ def describe(obj: ArticulatedObject, rng: Optional[np.random.Generator] = None,
         rest = groups[1:] if comp else groups
         words_nps = [f"{n if style != 1 else vocab.number_word(n)} {_noun(rng, l, n, 0.7)}"
                      for l, n, _, _ in rest]
-        head = f"{comp[0]} {cat}" if comp else cat
+        head = f"{comp} {cat}" if comp else cat
         if style == 2:
             words = f"{head} with " + _join(words_nps) if words_nps else head
         else:
@@ -554,7 +554,7 @@ def describe(obj: ArticulatedObject, rng: Optional[np.random.Generator] = None,
         # -- sentence --------------------------------------------------------------------
         comp = _compound(rng, groups)
         facts = _facts(rng, obj, groups[1:] if comp else groups, spatial)
-        head = f"{comp[0]} {cat}" if comp else cat
+        head = f"{comp} {cat}" if comp else cat
         opener = _choice(rng, ["A {c} with {f}.", "This is {a} {c} with {f}.", "{A} {c} that has {f}.",
                                "{A} {c} featuring {f}."])
         a = _article(head)
