@@ -349,7 +349,8 @@ class ArticulationModel:
                temperature: float = 1.0, modality: str = "text",
                keep: Union[ArticulatedObject, DecodedTree, None] = None,
                follow_plan: bool = False, plan=None,
-               structure=None) -> list[DecodedTree]:
+               structure=None, sample_choices: bool = False,
+               dropout_sampling: bool = False) -> list[DecodedTree]:
         """cond_tokens (S, L, D_cond), cond_mask (S, L) -> S decoded trees.
 
         ``temperature`` scales the END logits and the joint-type logits before sampling
@@ -377,11 +378,36 @@ class ArticulationModel:
         joint-type head over the joint types the label takes (or the asked one), and an asked
         hinge side is set on the predicted joint (``set_hinge``) before the node is fed back.
         Replaces ``plan`` / ``follow_plan``; not combined with ``keep``.
+
+        ``sample_choices`` (with temperature > 0): the row's seed also draws the discrete
+        choices that are otherwise taken as the most likely ones: each new part's label from
+        the label head's distribution (softmax of -distance / LABEL_TAU to the table's c_s,
+        tempered) and, with ``follow_plan``, each label's planned count from the START plan
+        head's distribution (tempered). False (default): the nearest label and the plan's
+        most likely counts. The boxes and joints of a part are regressed, so without
+        ``dropout_sampling`` they vary with the seed only through these choices and the END /
+        joint-type draws (docs/articulation.md).
+
+        ``dropout_sampling``: every round runs the network a second time with its training
+        dropout on, masks drawn from the row's seed, and takes the new parts' articulation
+        (boxes, joint origins and axes, limits) from that pass; every decision (END, labels,
+        joint types, plan) and the c_s / P outputs still come from the deterministic pass.
+        The seed thus picks one of the thinned networks dropout trained (Monte-Carlo
+        dropout): it samples the network's uncertainty about the layout, not a learned
+        distribution of layouts. Rows are then decoded one at a time (seed + i each).
         """
         if max_nodes < 1 or max_depth < 0 or max_children < 0:
             raise ValueError("max_nodes must be >= 1, max_depth and max_children >= 0")
         S = cond_tokens.shape[0]
         cond_tokens = cond_tokens.float()
+        if dropout_sampling and S > 1:    # a row's masks must not depend on the other rows
+            plan_t = None if plan is None else torch.as_tensor(plan)
+            return [tree for i in range(S) for tree in self.decode(
+                cond_tokens[i:i + 1], cond_mask[i:i + 1], seed=int(seed) + i,
+                max_nodes=max_nodes, max_depth=max_depth, max_children=max_children,
+                temperature=temperature, modality=modality, keep=keep, follow_plan=follow_plan,
+                plan=None if plan_t is None else plan_t[i:i + 1], structure=structure,
+                sample_choices=sample_choices, dropout_sampling=True)]
         if structure is not None:
             if keep is not None:
                 raise ValueError("structure control does not combine with editing (keep)")
@@ -404,21 +430,12 @@ class ArticulationModel:
                 r["plan"] = p
         memory = self.net.cond(cond_tokens, cond_mask, modality)   # encoded once, every round
         max_rounds = max_nodes + 2
-        for _ in range(max_rounds):
-            active = [i for i, r in enumerate(rows) if not all(r["done"])]
-            if not active:
-                break
-            batch = self._batch([rows[i] for i in active])
-            out, _ = self.net(batch, None, None, modality, memory=memory,
-                              cond_index=torch.tensor(active))
-            for b, i in enumerate(active):
-                if "plan" in out and rows[i]["plan_logits"] is None:
-                    rows[i]["plan_logits"] = out["plan"][b].float().numpy().copy()
-                if follow_plan and "plan" in out and rows[i].get("plan") is None:
-                    rows[i]["plan"] = out["plan"][b].argmax(-1).tolist()   # (labels,)
-                grow = self._grow_structured if structure is not None else self._grow
-                grow(rows[i], {k: v[b] for k, v in out.items()}, gens[i],
-                     max_nodes, max_depth, max_children, temperature)
+        with torch.random.fork_rng(devices=[], enabled=dropout_sampling):
+            if dropout_sampling:
+                torch.manual_seed(int(seed))   # the dropout masks (the global generator)
+            self._rounds(rows, gens, memory, modality, max_rounds, max_nodes, max_depth,
+                         max_children, temperature, follow_plan, structure, sample_choices,
+                         dropout_sampling)
         trees = [self._finish(r) for r in rows]
         if structure is not None:
             for i, (r, tree) in enumerate(zip(rows, trees)):
@@ -429,6 +446,40 @@ class ArticulationModel:
                 tree.category = r["struct"]["cat"]
                 tree.hinges = r["struct"]["sides"]
         return trees
+
+    def _rounds(self, rows, gens, memory, modality, max_rounds, max_nodes, max_depth,
+                max_children, temperature, follow_plan, structure, sample_choices,
+                dropout_sampling) -> None:
+        """The decoding rounds of ``decode`` (every unfinished node may get one child)."""
+        for _ in range(max_rounds):
+            active = [i for i, r in enumerate(rows) if not all(r["done"])]
+            if not active:
+                break
+            batch = self._batch([rows[i] for i in active])
+            out, _ = self.net(batch, None, None, modality, memory=memory,
+                              cond_index=torch.tensor(active))
+            if dropout_sampling:
+                self.net.train()
+                try:
+                    sampled, _ = self.net(batch, None, None, modality, memory=memory,
+                                          cond_index=torch.tensor(active))
+                finally:
+                    self.net.eval()
+                out["art"] = sampled["art"]
+            for b, i in enumerate(active):
+                if "plan" in out and rows[i]["plan_logits"] is None:
+                    rows[i]["plan_logits"] = out["plan"][b].float().numpy().copy()
+                if follow_plan and "plan" in out and rows[i].get("plan") is None:
+                    pl = out["plan"][b].float()                              # (labels, counts)
+                    if sample_choices and temperature > 0:
+                        rows[i]["plan"] = torch.multinomial(torch.softmax(pl / temperature, -1),
+                                                            1, generator=gens[i])[:, 0].tolist()
+                    else:
+                        rows[i]["plan"] = pl.argmax(-1).tolist()
+                grow = self._grow_structured if structure is not None else self._grow
+                grow(rows[i], {k: v[b] for k, v in out.items()}, gens[i],
+                     max_nodes, max_depth, max_children, temperature,
+                     temperature if sample_choices else 0.0)
 
     def _initial_row(self, keep, max_nodes: int) -> dict:
         row = {"tok": [], "jt": [], "cs": [], "cs_raw": [], "geo": [], "par": [], "depth": [],
@@ -498,7 +549,8 @@ class ArticulationModel:
         return TreeBatch(tok, jt, cs, par, dep, mask, labels=lab)
 
     def _grow(self, row: dict, out: dict, gen: torch.Generator, max_nodes: int,
-              max_depth: int, max_children: int, temperature: float) -> None:
+              max_depth: int, max_children: int, temperature: float,
+              label_temperature: float = 0.0) -> None:
         """Add at most one child to every unfinished token of one row (in token order)."""
         n_tokens = len(row["done"])
         for t in range(n_tokens):
@@ -515,7 +567,8 @@ class ArticulationModel:
             else:
                 wants = bool(logit > 0)
             cs_raw = out["cs"][t].float()
-            li = int(self.nearest_label(cs_raw[None])[0])
+            li = self._sample_label(cs_raw, None, self.table_labels, gen, label_temperature,
+                                    self.table_categories)
             count_i = self._count_index.get(self.table_labels[li], -1)
             plan = row.get("plan")
             if plan is not None and t > 0 and count_i >= 0 and plan[count_i] >= 0:
@@ -571,7 +624,8 @@ class ArticulationModel:
         return idx[int(d2.argmin())]
 
     def _grow_structured(self, row: dict, out: dict, gen: torch.Generator, max_nodes: int,
-                         max_depth: int, max_children: int, temperature: float) -> None:
+                         max_depth: int, max_children: int, temperature: float,
+                         label_temperature: float) -> None:
         """_grow held to a StructurePlan (see ``decode``'s ``structure``)."""
         st = row["struct"]
         sp: StructurePlan = st["plan"]
@@ -600,7 +654,8 @@ class ArticulationModel:
                 if row["tok"]:
                     row["done"][0] = True
                     continue
-                li = self._sample_label(cs_raw, None, ["body"], gen, temperature, sp.categories)
+                li = self._sample_label(cs_raw, None, ["body"], gen, label_temperature,
+                                        sp.categories)
                 st["cat"] = self.table_categories[li]
                 self._add_node(row, out, t, li, int(JointType.FIXED), 0, names, need)
                 st["sides"].append(None)
@@ -624,7 +679,7 @@ class ArticulationModel:
             if not wants and not forced:
                 row["done"][t] = True
                 continue
-            li = self._sample_label(cs_raw, st["cat"], forced or can, gen, temperature)
+            li = self._sample_label(cs_raw, st["cat"], forced or can, gen, label_temperature)
             lab = self.table_labels[li]
             allowed = [int(JointType.parse(j)) for j in
                        ([sp.joints[lab]] if lab in sp.joints

@@ -254,7 +254,10 @@ class Generator:
                                    max_children=cfg.max_children, modality=modality, keep=keep,
                                    temperature=cfg.structure_temperature,
                                    follow_plan=modality == "text" and "text" in cfg.follow_plan,
-                                   plan=plan, structure=splan)
+                                   plan=plan, structure=splan,
+                                   sample_choices=cfg.sample_choices,
+                                   dropout_sampling=cfg.layout_sampling == "always" or (
+                                       cfg.layout_sampling == "structure" and splan is not None))
         timings["decoding"] = (time.perf_counter() - t) / S
         return trees, prompt, modality, timings
 
@@ -434,6 +437,8 @@ def validate_config(cfg: GenerationConfig) -> None:
         (cfg.temperature > 0, f"temperature must be > 0, got {cfg.temperature}"),
         (0 <= cfg.structure_temperature <= 10,
          f"structure_temperature must be in [0, 10], got {cfg.structure_temperature}"),
+        (cfg.layout_sampling in ("never", "structure", "always"),
+         f"layout_sampling must be never|structure|always, got {cfg.layout_sampling!r}"),
         (set(cfg.follow_plan) <= {"text", "image"},
          f"follow_plan lists modalities 'text' / 'image', got {cfg.follow_plan!r}"),
         (cfg.geometry in ("generate", "retrieve"), f"geometry must be generate|retrieve, got {cfg.geometry!r}"),
