@@ -61,3 +61,18 @@ def test_vocab_tables():
     assert vocab.map_partnet_label("furniture_body") == "body"
     assert vocab.map_partnet_label("mystery") == "other"
     assert vocab.semantic_text("StorageFurniture", "drawer") == "storage furniture, drawer"
+
+
+def test_drop_degenerate_removes_zero_area_slivers_and_keeps_clean_meshes():
+    import trimesh
+
+    from model.core.meshops import drop_degenerate
+    box = trimesh.creation.box(extents=(1.0, 0.5, 0.2))
+    assert drop_degenerate(box) is box                      # nothing to drop: the same mesh
+    v = np.vstack([box.vertices, (box.vertices[0] + box.vertices[1]) / 2])
+    f = np.vstack([box.faces, [[0, 1, len(v) - 1]]])        # a zero-area face on an edge
+    sliver = trimesh.Trimesh(v, f, process=False)
+    assert not sliver.is_watertight
+    clean = drop_degenerate(sliver)
+    assert len(clean.faces) == 12 and clean.is_watertight
+    assert clean.volume == pytest.approx(0.1)

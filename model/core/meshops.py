@@ -123,6 +123,23 @@ def to_trimesh(man) -> "trimesh.Trimesh":  # noqa: F821
     return trimesh.Trimesh(vertices=V, faces=F, process=False)
 
 
+def drop_degenerate(mesh: "trimesh.Trimesh", height: float = 1e-9) -> "trimesh.Trimesh":  # noqa: F821
+    """``mesh`` without its zero-area slivers (faces under ``height`` tall, which exact
+    booleans leave where cuts graze each other), coincident vertices merged. Such a face has
+    no area and no neighbour across its collapsed edge, so mesh tools count it as a loose
+    component and the mesh as open. Returned only when it stays closed where ``mesh`` was
+    closed after merging; otherwise ``mesh`` itself."""
+    m = mesh.copy()
+    m.merge_vertices()
+    keep = m.nondegenerate_faces(height=height)
+    if keep.all():
+        return mesh
+    closed = m.is_watertight
+    m.update_faces(keep)
+    m.remove_unreferenced_vertices()
+    return m if (m.is_watertight or not closed) else mesh
+
+
 # ---------------------------------------------------------------------------------------------
 # measures
 # ---------------------------------------------------------------------------------------------

@@ -254,7 +254,7 @@ def manifolds_of(obj: ArticulatedObject) -> dict:
 
 def store(obj: ArticulatedObject, mans: dict) -> None:
     for i, m in mans.items():
-        obj.parts[i].mesh = meshops.to_trimesh(m)
+        obj.parts[i].mesh = meshops.drop_degenerate(meshops.to_trimesh(m))
 
 
 __all__ = ["add_runners", "round_collision", "drop_floaters", "simplify_to_budget", "carve_parents", "carve_collision", "shrink_limits",
