@@ -23,6 +23,7 @@ def test_schema_accepts_counts_auto_objects_and_json_text():
     # one side for all parts; a hinge alone means one part; joint names are case-free
     assert parse_structure({"door": {"count": 3, "hinge": "top"}}).parts["door"].hinge == ("top",) * 3
     assert parse_structure({"door": {"hinge": "left"}}).parts["door"].count == 1
+    assert parse_structure({"door": {}}).parts["door"].count == 1
     assert parse_structure({"knob": {"count": 2, "joint": "Continuous"}}).parts["knob"].joint == "continuous"
     assert parse_structure({"drawer": 0}).parts["drawer"].count == 0
     # round trip through to_dict

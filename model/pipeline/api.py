@@ -134,7 +134,7 @@ def parse_structure(value) -> StructureSpec:
 
     Form: ``{"category": str (optional), <label>: <part>, ...}`` where ``<part>`` is a count
     (int >= 0), ``"auto"`` (the model decides how many), or an object
-    ``{"count": int | "auto", "joint": "fixed|revolute|prismatic|continuous|screw",
+    ``{"count": int | "auto" (default 1), "joint": "fixed|revolute|prismatic|continuous|screw",
     "hinge": "left|right|top|bottom" | [one side per part]}``. ``hinge`` implies (and needs)
     a revolute joint.
     """
@@ -175,7 +175,7 @@ def _part_request(label: str, spec) -> PartRequest:
     unknown = sorted(set(spec) - {"count", "joint", "hinge"})
     if unknown:
         raise GenerationError(f"{where}: unknown field(s) {unknown}; allowed: count, joint, hinge")
-    count = spec.get("count", 1 if "hinge" in spec or "joint" in spec else None)
+    count = spec.get("count", 1)
     if count == AUTO:
         count = None
     elif isinstance(count, bool) or not isinstance(count, int):
