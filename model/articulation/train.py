@@ -432,13 +432,15 @@ def train(rc: RunConfig) -> Path:
                              data.geo_shape)
         _, L = model(batch, cond, cmask, "text", drop=drop, cond_index=idx, targets=targets,
                      weights=asdict(tc))
-        return L["total"], {k: float(v.detach()) for k, v in L.items() if k in ("end", "art", "jt", "cs")}
+        return L["total"], {k: float(v.detach()) for k, v in L.items()
+                            if k in ("end", "art", "jt", "cs")}
 
     def val_fn():
         return evaluate_loss(net, va, data.geo_shape, text_cache, tc, tc.val_batches,
                              label_cs=label_cs) if va else None
 
-    st = train_loop(net, opt, loop_config(tc, "train transformer", rc.progress, out, rc.chunk_minutes), step_fn,
+    lc = loop_config(tc, "train transformer", rc.progress, out, rc.chunk_minutes)
+    st = train_loop(net, opt, lc, step_fn,
                     val_fn=val_fn, save_fn=save, state=state, dist=dist, unused_params=True)
     dist.close()
     log.info("done: %d steps in %.1f min", st.step, (time.time() - t_start) / 60)

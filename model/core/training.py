@@ -158,8 +158,9 @@ class _Run:
 
     def over_budget(self) -> bool:
         c = self.cfg
-        return bool(self.dist.any(c.minutes > 0 and self.elapsed() > c.minutes * 60
-                                  or c.chunk_minutes > 0 and time.time() - self.t0 > c.chunk_minutes * 60))
+        spent = c.minutes > 0 and self.elapsed() > c.minutes * 60
+        chunk = c.chunk_minutes > 0 and time.time() - self.t0 > c.chunk_minutes * 60
+        return bool(self.dist.any(spent or chunk))
 
     def lr(self) -> float:
         c = self.cfg

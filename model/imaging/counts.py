@@ -350,6 +350,7 @@ def _parser():
     ap.add_argument("--lr", type=float, default=CountTrainConfig.lr)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--no-progress", action="store_true")
     ap.add_argument("--fp32", action="store_true", help="store the head in fp32 (default fp16)")
     return ap
 
@@ -366,7 +367,7 @@ def cli_main(argv: list[str]) -> int:
     try:
         path = train_count_head(args.image, args.data, args.renders, args.out,
                                 extra=[tuple(x) for x in args.extra_train], tc=tc, command=command,
-                                half=not args.fp32)
+                                half=not args.fp32, progress=not args.no_progress)
     except CountHeadError as e:
         print(f"artformer train image-counts: {e}", flush=True)
         return 2

@@ -443,8 +443,8 @@ def train_image(rc: ImageRunConfig) -> Path:
                                    label_cs=label_cs) if p["va"] else None
 
     encoder.train()
-    st = train_loop(net, opt, loop_config(tc, "train image", rc.progress, out, rc.chunk_minutes), step_fn,
-                    val_fn=val_fn, save_fn=save, state=state, dist=dist, unused_params=True)
+    st = train_loop(net, opt, loop_config(tc, "train image", rc.progress, out, rc.chunk_minutes),
+                    step_fn, val_fn=val_fn, save_fn=save, state=state, dist=dist, unused_params=True)
     if dist.main:
         summary = {"steps": st.step, "train_minutes": st.elapsed / 60,
                    "total_minutes": (time.time() - t_start) / 60, "feature_seconds": p["t_feats"],

@@ -427,6 +427,7 @@ def _parser():
                          "(default: ImageNet's)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--no-progress", action="store_true")
     return ap
 
 
@@ -446,7 +447,7 @@ def cli_main(argv: list[str]) -> int:
     command = "artformer train image-trunk " + " ".join(shlex.quote(a) for a in argv)
     try:
         path = train_trunk(args.data, args.renders, args.out, extra=[tuple(x) for x in args.extra_train],
-                           tc=tc, labels=labels, command=command)
+                           tc=tc, labels=labels, command=command, progress=not args.no_progress)
     except (ValueError, FileNotFoundError, TrunkError) as e:
         print(f"artformer train image-trunk: {e}", flush=True)
         return 2
