@@ -105,7 +105,7 @@ def test_grammar_matches_the_data_generator():
     from model.articulation.decode import STRUCTURE_EXCLUSIVE, STRUCTURE_GRAMMAR
     from model.data.synth import generate_object
     for cat, grammar in STRUCTURE_GRAMMAR.items():
-        for index in range(3):
+        for index in range(2):
             obj = generate_object(7, index, category=cat)
             counts = Counter(p.label for p in obj.parts)
             for p in obj.parts:
@@ -248,18 +248,32 @@ def _check(tree, structure, plan):
         assert got == list(spec.parts[lab].hinge), (lab, got)
 
 
-def test_shipped_model_honours_60_structures(am):
-    """100 % of 60 structures (20 with 8+ parts), two seeds each, decoded as the product
-    decodes (T = 0.3)."""
+def _honoured(am, cases, seeds: int = 2) -> int:
+    """Decode every (prompt, structure) as the product decodes (T = 0.3, layout sampling on)
+    with ``seeds`` seeds and check each tree; returns how many structures have 8+ parts."""
     big = 0
-    assert len(STRUCTURES) >= 60
-    for prompt, structure in STRUCTURES:
+    for prompt, structure in cases:
         plan = am.resolve_structure(structure)
         big += sum(plan.counts.values()) >= 8
-        cond, mask = am.encode_text([prompt] * 2)
-        for tree in am.decode(cond, mask, seed=0, temperature=0.3, structure=plan):
+        cond, mask = am.encode_text([prompt] * seeds)
+        for tree in am.decode(cond, mask, seed=0, temperature=0.3, structure=plan,
+                              dropout_sampling=True):
             _check(tree, structure, plan)
-    assert big >= 15
+    return big
+
+
+@pytest.mark.slow    # ~30-45 s on 2 cores; the fast variant below runs every 5th structure
+def test_shipped_model_honours_60_structures(am):
+    """100 % of 60 structures (20 with 8+ parts), two seeds each."""
+    assert len(STRUCTURES) >= 60
+    assert _honoured(am, STRUCTURES) >= 15
+
+
+def test_shipped_model_honours_every_fifth_structure(am):
+    """The fast variant: 12 of the 60 structures, one seed each."""
+    cases = STRUCTURES[::5]
+    assert len(cases) == 12
+    assert _honoured(am, cases, seeds=1) >= 3
 
 
 def test_structure_is_honoured_greedy_and_at_temperature_one(am):
@@ -291,3 +305,17 @@ def test_the_generator_forces_the_structure_and_refuses_before_decoding(tmp_path
         gen.generate("a cabinet", structure={"drawer": 3, "cap": 1})
     with pytest.raises(GenerationError, match="not valid JSON"):
         gen.generate("a cabinet", structure='{"drawer": 3')
+
+
+def test_cli_structure_errors_come_before_the_model_loads(tmp_path, capsys):
+    from model.pipeline.commands import main
+    assert main(["generate", "a cabinet", "--structure", '{"drawer": 3,', "--out",
+                 str(tmp_path / "o")]) == 1
+    assert "structure is not valid JSON" in capsys.readouterr().err
+    assert main(["generate", "a cabinet", "--structure", '{"door": {"hinge": "up"}}', "--out",
+                 str(tmp_path / "o")]) == 1
+    assert "unknown hinge side" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["generate", "--prompts", "p.txt", "--structure", '{"drawer": 1}', "--out",
+              str(tmp_path / "o")])
+    assert not (tmp_path / "o").exists()
