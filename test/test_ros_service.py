@@ -425,7 +425,7 @@ def test_the_example_backend_honours_its_own_structures_and_refuses_others(tmp_p
     [bottle] = backend.generate(text="a thing", image=None, seed=0, samples=1,
                                 structure={"cap": {"count": 1, "joint": "screw"}})
     assert bottle.obj.category == "Bottle"
-    for bad, words in (({"drawer": 3}, "1 door part"),
+    for bad, words in (({"drawer": 3}, "2 drawer part"), ({"drawer": 2}, "1 door part"),
                        ({"drawer": 2, "door": {"count": 1, "hinge": "left"}}, "hinges are"),
                        ({"cap": {"count": 1, "joint": "revolute"}}, "revolute joints")):
         with pytest.raises(GenerationError, match="example backend.*" + words):

@@ -169,9 +169,6 @@ def structure_mismatch(obj: ArticulatedObject, structure) -> str | None:
     have: dict[str, list[Part]] = {}
     for p in obj.parts:
         have.setdefault(p.label, []).append(p)
-    for lab, parts in have.items():
-        if lab not in spec.parts and lab not in ("body", "handle"):
-            return f"it has {len(parts)} {lab} part(s) the structure does not ask for"
     for lab, req in spec.parts.items():
         parts = have.get(lab, [])
         if req.count is not None and len(parts) != req.count:
@@ -181,4 +178,7 @@ def structure_mismatch(obj: ArticulatedObject, structure) -> str | None:
         if req.hinge and [hinge_side(p.token()) for p in parts] != list(req.hinge):
             return (f"its {lab} hinges are {[hinge_side(p.token()) for p in parts]}, not "
                     f"{list(req.hinge)}")
+    for lab, parts in have.items():
+        if lab not in spec.parts and lab not in ("body", "handle"):
+            return f"it has {len(parts)} {lab} part(s) the structure does not ask for"
     return None
