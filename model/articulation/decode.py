@@ -277,7 +277,8 @@ class ArticulationModel:
             if len(why) == 1:
                 raise ValueError(f"structure: {next(iter(why.values()))}")
             reasons = "; ".join(f"{c}: {m}" for c, m in why.items())
-            raise ValueError(f"structure: no category of this model can have these parts ({reasons})")
+            raise ValueError(f"structure: no category of this model can have these parts "
+                             f"({reasons})")
         first = plans[0]
         return StructurePlan(categories=[c for c in cats if c not in why], counts=first.counts,
                              auto=first.auto, joints=first.joints, hinges=first.hinges)
