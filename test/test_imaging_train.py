@@ -730,3 +730,26 @@ def test_true_count_tokens_replace_the_heads_readings_of_chosen_rows():
     assert torch.equal(cond[1, 49:], want)
     _true_count_tokens(cond, items, labels, 4, [True, False])
     assert cond[0, 49:, :4].argmax(-1).tolist() == [1, 2, 0]
+
+
+@pytest.mark.slow     # two processes each load the image encoder (~30 s)
+def test_torchrun_two_processes_train_the_image_model(tiny_set, tmp_path):
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+    torchrun = Path(sys.executable).parent / "torchrun"
+    if not torchrun.exists():
+        pytest.skip("torchrun not installed in this environment")
+    root = Path(__file__).resolve().parents[1]
+    env = dict(os.environ, OMP_NUM_THREADS="1", PYTHONPATH=str(root))
+    cmd = [str(torchrun), "--standalone", "--nproc_per_node", "2", "-m", "model", "train", "image",
+           "--data", str(tiny_set / "prepared"), "--renders", str(tiny_set / "renders"),
+           "--prior", "none", "--preset", "tiny", "--init", "none", "--steps", "4",
+           "--no-progress", "--threads", "1", "--out", str(tmp_path / "run")]
+    r = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=300, cwd=tmp_path)
+    assert r.returncode == 0, r.stderr[-3000:]
+    from model.imaging.model import load_image_model
+    im = load_image_model(tmp_path / "run" / "image.pt", prior="stand-in")
+    assert im.meta["step"] == 4
+

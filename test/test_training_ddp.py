@@ -104,6 +104,16 @@ def test_chunks_stop_and_resume_to_the_uninterrupted_result():
     assert torch.allclose(whole.weight, chunked.weight) and torch.allclose(whole.bias, chunked.bias)
 
 
+def test_shard_splits_and_never_leaves_a_process_empty():
+    d = Dist.__new__(Dist)                     # a rank of a 2-process run, without gloo
+    d.world, d.active = 2, True
+    d.rank = 1
+    assert d.shard([0, 1, 2, 3, 4]) == [1, 3]
+    assert d.shard(["only"]) == ["only"]       # fewer batches than processes: one repeats
+    d.rank = 0
+    assert d.shard([0, 1, 2, 3, 4]) == [0, 2, 4]
+
+
 def _free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))

@@ -71,8 +71,11 @@ class Dist:
         return DistributedDataParallel(model, find_unused_parameters=unused)
 
     def shard(self, items: list) -> list:
-        """This process's share of a list every process built the same way."""
-        return items[self.rank::self.world] if self.active else items
+        """This process's share of a list every process built the same way (one item of it
+        when there are fewer items than processes)."""
+        if not self.active or not items:
+            return items
+        return items[self.rank::self.world] or [items[self.rank % len(items)]]
 
     def any(self, flag: bool) -> bool:
         """True on every process when it is true on one (e.g. the time budget is spent)."""
