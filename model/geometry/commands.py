@@ -29,6 +29,9 @@ def _train_parser(kind: str) -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--threads", type=int, help="torch threads (split across torchrun ranks)")
     p.add_argument("--resume", action="store_true", help="continue from OUT/ckpt.pt")
+    p.add_argument("--minutes", type=float, default=0.0,
+                   help="wall-clock budget in minutes, counted over resumed runs (0 = none): "
+                        "the run stops with its checkpoint written when it is spent")
     p.add_argument("--no-progress", action="store_true")
     p.add_argument("--export", metavar="PATH",
                    help="also write a stripped fp16 copy of the final weights to PATH")
@@ -36,14 +39,23 @@ def _train_parser(kind: str) -> argparse.ArgumentParser:
 
 
 def _train(kind: str, argv: list[str]) -> int:
+    import dataclasses
     from .train import RunArgs, export_weights, train_prior, train_sdf
     a = _train_parser(kind).parse_args(argv[2:])
+    if a.minutes < 0:
+        raise ValueError("--minutes must be >= 0")
+    budget = {}
+    if a.minutes:
+        if "minutes" not in {f.name for f in dataclasses.fields(RunArgs)}:
+            raise ValueError("--minutes needs the shared training loop (model.core.training); "
+                             "this checkout's model/geometry/train.py has none")
+        budget["minutes"] = a.minutes
     args = RunArgs(data=a.data, out=a.out, preset=a.preset, steps=a.steps, epochs=a.epochs,
                    batch_size=a.batch_size, lr=a.lr, seed=a.seed, resume=a.resume,
                    threads=a.threads, progress=not a.no_progress,
                    sdf=getattr(a, "sdf", None), n_codebooks=getattr(a, "codebooks", None),
                    codebook_size=getattr(a, "codebook_size", None),
-                   argv=tuple(["artformer", *argv]))
+                   argv=tuple(["artformer", *argv]), **budget)
     res = (train_sdf if kind == "sdf" else train_prior)(args)
     import os
     if int(os.environ.get("RANK", "0")) == 0:

@@ -219,7 +219,7 @@ def per_label(rows: list[dict]) -> dict:
 
 def reconstruct(shape, parts, idx: list[int], *, resolution: int = 64, seed: int = 0,
                 progress: bool = False, truth: Optional[dict] = None, mesh_kw=None,
-                z: Optional[torch.Tensor] = None) -> list[dict]:
+                z: Optional[torch.Tensor] = None, iou: bool = True) -> list[dict]:
     """Encode, decode and mesh parts ``idx``; one metric row per part (``mesh`` kept, metric
     frame). ``truth`` caches TruePart per index across calls."""
     truth = {} if truth is None else truth
@@ -241,7 +241,7 @@ def reconstruct(shape, parts, idx: list[int], *, resolution: int = 64, seed: int
         r = shape.decode(z[j:j + 1], resolution, **(mesh_kw or {}))[0]
         ms = (time.perf_counter() - t0) * 1000
         pred = box_to_metric(r.mesh, parts, i) if r.ok else r.mesh
-        row = compare(pred, tp, seed)
+        row = compare(pred, tp, seed, iou=iou)
         row.update(index=i, label=part_label(parts.texts[i]), text=parts.texts[i],
                    object=parts.object_ids[i], true_components=tp.components,
                    size_m=tp.size, mesh_ms=ms, status=r.status, mesh=pred, true=tp)
@@ -581,7 +581,7 @@ def wall_thickness(mesh, n: int, seed: int, step: float, steps: int = 48,
 
 def diagnose(shape, data: str, *, split: str = "test", per_label_cap: int = 6,
              max_parts: Optional[int] = 80, seed: int = 0,
-             resolutions: tuple[int, ...] = (32, 64, 96, 128), progress: bool = True) -> dict:
+             resolutions: tuple[int, ...] = (32, 64, 128), progress: bool = True) -> dict:
     """Measure where thin walls are lost (numbers per hypothesis; see docs/geometry.md).
 
     a) meshing resolution: the auto-encoder's reconstructions at each of ``resolutions``,
@@ -620,7 +620,7 @@ def diagnose(shape, data: str, *, split: str = "test", per_label_cap: int = 6,
     out["a_ae_resolution"] = {}
     for r in resolutions:
         rows = reconstruct(shape, parts, idx, resolution=r, seed=seed, truth=truth, z=z,
-                           progress=progress)
+                           progress=progress, iou=False)
         res_rows[r] = rows
         out["a_ae_resolution"][str(r)] = brief(rows)
     # a) + c) the true SDF meshed in the box / iso frame
@@ -727,7 +727,7 @@ def diagnose(shape, data: str, *, split: str = "test", per_label_cap: int = 6,
     rem = {}
     for lv in (0.5, 1.0):
         rows = reconstruct(shape, parts, idx, resolution=64, seed=seed, truth=truth, z=z,
-                           mesh_kw={"level": lv * h64})
+                           mesh_kw={"level": lv * h64}, iou=False)
         rem[f"level_+{lv}_cell"] = brief(rows)
     base = res_rows.get(64) or reconstruct(shape, parts, idx, resolution=64, seed=seed,
                                            truth=truth, z=z)
@@ -737,7 +737,7 @@ def diagnose(shape, data: str, *, split: str = "test", per_label_cap: int = 6,
             kept.append(r)
             continue
         m = keep_largest_components(r["mesh"], 1)
-        row = compare(m, truth[r["index"]], seed)
+        row = compare(m, truth[r["index"]], seed, iou=False)
         row.update(label=r["label"], true_components=r["true_components"], index=r["index"])
         kept.append(row)
     rem["largest_component_only"] = brief(kept)

@@ -128,18 +128,71 @@ def marching_cubes(values: np.ndarray, bound: float = 1.0, level: float = 0.0) -
     return MeshResult(mesh, "ok", 0)
 
 
+MIN_ISLAND = 8   # default: sign islands of <= 8 grid vertices (a 2x2x2 block) are removed
+
+
+def remove_islands(values: np.ndarray, level: float = 0.0, max_vertices: int = MIN_ISLAND,
+                   eps: Optional[float] = None) -> tuple[np.ndarray, int]:
+    """Flip sub-resolution sign islands of a vertex grid: inside regions of at most
+    ``max_vertices`` vertices (connected through grid edges, the connectivity marching cubes
+    keeps: vertices that only share a cell diagonal become separate shells) become outside,
+    and enclosed outside pockets of that size (bubbles) become inside.
+
+    Such islands are below what the grid resolves (a feature needs more than a 2x2x2 block of
+    vertices to be meshed faithfully); in decoded fields they are the network's sign noise —
+    isolated specks at box corners, bubbles inside walls — and each one is a separate
+    8-to-48-face shell after marching cubes. Larger fragments (a shredded wall) are kept:
+    this removes noise, it does not hide damage. Flipped vertices get ``level +- eps``
+    (default 1 % of the field's largest magnitude). -> (values, islands removed)."""
+    from scipy import ndimage
+    if max_vertices <= 0:
+        return values, 0
+    out = None
+    removed = 0
+    conn = ndimage.generate_binary_structure(3, 1)
+    h = eps if eps is not None else float(np.abs(values - level).max()) * 0.01 + 1e-9
+    for inside_side in (True, False):
+        mask = values < level if inside_side else values >= level
+        lab, n = ndimage.label(mask, structure=conn)
+        if n <= 1:
+            continue
+        sizes = np.bincount(lab.ravel(), minlength=n + 1)
+        small = sizes[1:] <= max_vertices
+        if not small.any():
+            continue
+        small = np.concatenate([[False], small])
+        if inside_side and small[1:].all():
+            # every inside region is tiny: keep the largest (the part itself is tiny)
+            small[int(np.argmax(sizes[1:])) + 1] = False
+        if not inside_side:
+            # outside regions touching the grid boundary are the part's exterior, never a bubble
+            for face in (lab[[0, -1]], lab[:, [0, -1]], lab[:, :, [0, -1]]):
+                small[np.unique(face)] = False
+        if not small.any():
+            continue
+        if out is None:
+            out = values.copy()
+        out[small[lab]] = level + h if inside_side else level - h
+        removed += int(small.sum())
+    return (values if out is None else out), removed
+
+
 def mesh_sdf_batch(sdf_fn: SdfFn, batch: int, resolution: int = 64, *, bound: float = 1.0,
-                   band: float = 1.5, min_coarse: int = 16, level: float = 0.0
-                   ) -> list[MeshResult]:
-    """Mesh ``batch`` SDFs at once (one batched network call per level)."""
+                   band: float = 1.5, min_coarse: int = 16, level: float = 0.0,
+                   min_island: int = MIN_ISLAND) -> list[MeshResult]:
+    """Mesh ``batch`` SDFs at once (one batched network call per level).
+
+    ``level``: the iso-value meshed; ``min_island``: sign islands of at most this many
+    vertices are removed first (:func:`remove_islands`; 0 keeps them)."""
     values, evals = evaluate_grid(sdf_fn, batch, resolution, bound=bound, band=band,
                                   min_coarse=min_coarse, level=level)
-    inside = (values < level).numpy()
     out = []
     for b in range(batch):
-        r = marching_cubes(values[b].numpy(), bound, level)
+        v, _ = remove_islands(values[b].numpy(), level, min_island,
+                              eps=0.25 * 2 * bound / resolution)
+        r = marching_cubes(v, bound, level)
         r.evaluations = int(evals[b])
-        r.inside = inside[b]
+        r.inside = v < level
         r.bound = bound
         out.append(r)
     return out
