@@ -25,8 +25,11 @@ setup(
     entry_points={
         "console_scripts": [
             "artformer = model.cli:main",
-            "generator_node = artformer_ros.generator_node:main",
-            "request = artformer_ros.request:main",
+            "artformer_generator_node = artformer_ros.generator_node:main",
+            "artformer_request = artformer_ros.request:main",
+            # the earlier names, kept for one more release
+            "generator_node = artformer_ros.generator_node:main_old_name",
+            "request = artformer_ros.request:main_old_name",
         ],
     },
 )

@@ -340,3 +340,10 @@ def main(argv: Optional[list[str]] = None) -> int:
 
 if __name__ == "__main__":
     sys.exit(main())
+
+
+def main_old_name() -> int:
+    """``generator_node``: the executable's earlier name, kept for one more release."""
+    print("generator_node is now artformer_generator_node; the old name goes in the next release",
+          file=sys.stderr)
+    return main()

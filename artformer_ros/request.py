@@ -96,3 +96,10 @@ def main(argv: Optional[list[str]] = None) -> int:
 
 if __name__ == "__main__":
     sys.exit(main())
+
+
+def main_old_name() -> int:
+    """``request``: the executable's earlier name, kept for one more release."""
+    print("request is now artformer_request; the old name goes in the next release",
+          file=sys.stderr)
+    return main()

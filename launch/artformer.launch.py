@@ -36,7 +36,7 @@ def generate_launch_description():
     ]
     node = Node(
         package="artformer_ros",
-        executable="generator_node",
+        executable="artformer_generator_node",
         name="artformer_generator",
         namespace=LaunchConfiguration("namespace"),
         output="screen",

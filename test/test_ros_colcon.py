@@ -1,5 +1,5 @@
 """`colcon build` builds the package (ament_python) into a temp install tree, and the installed
-`lib/artformer_ros/generator_node` starts from that tree with the shipped params YAML and
+`lib/artformer_ros/artformer_generator_node` starts from that tree with the shipped params YAML and
 serves a request (example backend)."""
 import os
 import random
@@ -52,7 +52,7 @@ def installed(tmp_path_factory):
 def test_install_tree_has_the_executables_and_share_files(installed):
     _, install, _ = installed
     prefix = install / PKG
-    for exe in ("generator_node", "request"):
+    for exe in ("artformer_generator_node", "artformer_request", "generator_node", "request"):
         path = prefix / "lib" / PKG / exe
         assert path.is_file() and os.access(path, os.X_OK), path
     share = prefix / "share" / PKG
@@ -79,7 +79,7 @@ def test_installed_generator_node_starts_and_serves(installed):
     share = Path(lines[2])
     assert share == install / PKG / "share" / PKG
 
-    exe = install / PKG / "lib" / PKG / "generator_node"
+    exe = install / PKG / "lib" / PKG / "artformer_generator_node"
     log = tmp / "node.log"
     with open(log, "w") as f:
         proc = subprocess.Popen([str(exe), "--ros-args", "--params-file",

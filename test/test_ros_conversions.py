@@ -373,7 +373,7 @@ def test_launch_file_passes_namespace_params_and_remaps_to_the_node(monkeypatch)
                     "remap_joint_states": "joint_states"}
     node = made["node"]
     assert (node["package"], node["executable"], node["name"]) == (
-        "artformer_ros", "generator_node", "artformer_generator")
+        "artformer_ros", "artformer_generator_node", "artformer_generator")
     assert node["namespace"] == Config("namespace")
     assert node["parameters"] == [Config("params_file")]
     assert node["remappings"] == [("robot_description", Config("remap_description")),
