@@ -29,10 +29,6 @@ def _parser() -> argparse.ArgumentParser:
                     help="SDF auto-encoder checkpoint (part latents z)")
     ap.add_argument("--preset", default="small", choices=sorted(PRESETS))
     ap.add_argument("--out", default="runs/transformer_small")
-    ap.add_argument("--resume", action="store_true", help="continue from OUT/last.pt")
-    ap.add_argument("--chunk-minutes", type=float, default=0.0, metavar="M",
-                    help="stop after M minutes of this process, checkpoint written; --resume "
-                         "continues (the schedule follows --steps / --minutes)")
     ap.add_argument("--init", metavar="CKPT", help="start from the weights of CKPT (fine-tune; "
                                                    "tensors whose shapes differ are skipped)")
     ap.add_argument("--extra-train", metavar="DATA", action="append", default=[],
@@ -44,16 +40,7 @@ def _parser() -> argparse.ArgumentParser:
                          "--extra-train objects (fewer text states to encode and cache; "
                          "default 0 = all)")
     ap.add_argument("--ablation", default="none", choices=ABLATIONS)
-    ap.add_argument("--steps", type=int, help="override max_steps")
-    ap.add_argument("--minutes", type=float, help="override the wall-clock budget (0 = none)")
-    ap.add_argument("--batch-size", type=int)
-    ap.add_argument("--lr", type=float)
-    ap.add_argument("--warmup", type=int, help="override warmup_steps")
-    ap.add_argument("--own-inputs", type=float, metavar="SHARE",
-                    help="scheduled sampling: share of the objects per batch whose nodes carry "
-                         "the network's own articulation predictions (default 0)")
-    ap.add_argument("--seed", type=int)
-    ap.add_argument("--threads", type=int)
+    add_training_args(ap)
     ap.add_argument("--text-encoder", help="'all-minilm-l6-v2' or a local transformers folder")
     ap.add_argument("--half", metavar="PATH", help="also write an fp16 copy of the final "
                                                    "checkpoint to PATH (the shipped file)")
@@ -67,8 +54,35 @@ def _parser() -> argparse.ArgumentParser:
     ap.add_argument("--follow-plan", action="store_true",
                     help="--eval: decode with END decisions held to the START plan head")
     ap.add_argument("--json", metavar="PATH", help="--eval: write the report as JSON")
-    ap.add_argument("--no-progress", action="store_true")
     return ap
+
+
+def add_training_args(ap: argparse.ArgumentParser) -> None:
+    """The flags of the shared training loop and the TrainConfig overrides that the text and
+    image trainers both take."""
+    ap.add_argument("--resume", action="store_true", help="continue from OUT/last.pt")
+    ap.add_argument("--chunk-minutes", type=float, default=0.0, metavar="M",
+                    help="stop after M minutes of this process, checkpoint written; --resume "
+                         "continues (the schedule follows --steps / --minutes)")
+    ap.add_argument("--steps", type=int, help="override max_steps")
+    ap.add_argument("--minutes", type=float, help="override the wall-clock budget (0 = none)")
+    ap.add_argument("--batch-size", type=int)
+    ap.add_argument("--lr", type=float)
+    ap.add_argument("--warmup", type=int, help="override warmup_steps")
+    ap.add_argument("--own-inputs", type=float, metavar="SHARE",
+                    help="scheduled sampling: share of the objects per batch whose nodes carry "
+                         "the network's own articulation predictions (default 0)")
+    ap.add_argument("--seed", type=int)
+    ap.add_argument("--threads", type=int)
+    ap.add_argument("--no-progress", action="store_true")
+
+
+def training_overrides(args: argparse.Namespace, **more) -> dict:
+    """TrainConfig fields set by the flags of ``add_training_args`` (and ``more``)."""
+    given = {"max_steps": args.steps, "max_minutes": args.minutes, "batch_size": args.batch_size,
+             "lr": args.lr, "warmup_steps": args.warmup, "own_inputs": args.own_inputs,
+             "seed": args.seed, "threads": args.threads, **more}
+    return {k: v for k, v in given.items() if v is not None}
 
 
 def make_targets(prior: str, sdf: str, net_cfg):
@@ -103,12 +117,8 @@ def main(argv: list[str]) -> int:
             Path(args.json).write_text(json.dumps(rep, indent=1))
         return 0
     from .config import preset
-    overrides = {k: v for k, v in {"max_steps": args.steps, "max_minutes": args.minutes,
-                                   "batch_size": args.batch_size, "lr": args.lr,
-                                   "warmup_steps": args.warmup, "own_inputs": args.own_inputs,
-                                   "seed": args.seed, "threads": args.threads,
-                                   "text_encoder": args.text_encoder}.items() if v is not None}
-    net_cfg, tc = preset(args.preset, args.ablation, **overrides)
+    net_cfg, tc = preset(args.preset, args.ablation,
+                         **training_overrides(args, text_encoder=args.text_encoder))
     from .train import RunConfig, train
     targets = make_targets(args.prior, args.sdf, net_cfg)
     command = "artformer train transformer " + " ".join(shlex.quote(a) for a in argv)

@@ -140,7 +140,7 @@ def _image_eval_args(ap: argparse.ArgumentParser) -> None:
 
 
 def _image_parser():
-    import argparse
+    from model.articulation.commands import add_training_args
     ap = argparse.ArgumentParser(
         prog="artformer train image",
         description="Train the articulation transformer conditioned on rendered images "
@@ -179,24 +179,10 @@ def _image_parser():
                     metavar=("DATA", "RENDERS"),
                     help="more training objects: a prepared dataset with its own data version "
                          "and its render set (all its splits train; repeatable)")
-    ap.add_argument("--resume", action="store_true", help="continue from OUT/last.pt")
-    ap.add_argument("--chunk-minutes", type=float, default=0.0, metavar="M",
-                    help="stop after M minutes of this process, checkpoint written; --resume "
-                         "continues (the schedule follows --steps / --minutes)")
-    ap.add_argument("--steps", type=int)
-    ap.add_argument("--minutes", type=float)
-    ap.add_argument("--batch-size", type=int)
-    ap.add_argument("--lr", type=float)
-    ap.add_argument("--warmup", type=int, help="override warmup_steps")
-    ap.add_argument("--own-inputs", type=float, metavar="SHARE",
-                    help="scheduled sampling: share of the objects per batch whose nodes carry "
-                         "the network's own articulation predictions (default 0)")
-    ap.add_argument("--seed", type=int)
-    ap.add_argument("--threads", type=int)
+    add_training_args(ap)
     ap.add_argument("--half", metavar="PATH", help="also write an fp16 copy (the shipped file)")
     _image_eval_args(ap)
     ap.add_argument("--json", metavar="PATH")
-    ap.add_argument("--no-progress", action="store_true")
     return ap
 
 
@@ -232,17 +218,12 @@ def train_image_main(argv: list[str]) -> int:
             Path(args.json).parent.mkdir(parents=True, exist_ok=True)
             Path(args.json).write_text(json.dumps(rep, indent=1))
         return 0
-    from model.articulation.commands import make_targets
+    from model.articulation.commands import make_targets, training_overrides
     from model.encoders.image import check_image_size
 
     from .train import ImageRunConfig, ImageTrainConfig, train_image, write_half
     from model.articulation.config import preset
-    overrides = {k: v for k, v in {"max_steps": args.steps, "max_minutes": args.minutes,
-                                   "batch_size": args.batch_size, "lr": args.lr,
-                                   "warmup_steps": args.warmup, "own_inputs": args.own_inputs,
-                                   "seed": args.seed, "threads": args.threads}.items()
-                 if v is not None}
-    net_cfg, tc = preset(args.preset, **overrides)
+    net_cfg, tc = preset(args.preset, **training_overrides(args))
     targets = make_targets(args.prior, args.sdf, net_cfg)
     ic = ImageTrainConfig(trainable_blocks=args.trainable_blocks, tail_lr_mult=args.tail_lr_mult,
                           init=args.init, positions=not args.no_positions,
