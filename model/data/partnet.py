@@ -265,109 +265,20 @@ def load_partnet(folder: os.PathLike, up_axis: str = "auto") -> ArticulatedObjec
     if up_axis not in ("y", "z"):
         raise PartNetFormatError(f"{folder}: up_axis must be y or z, got {up_axis!r}")
     links, joints = _read_urdf(urdf_path)
-    child_of = {j["child"]: j for j in joints}
-    roots = [ln for ln in links if ln not in child_of]
-    if len(roots) != 1:
-        raise PartNetFormatError(f"{folder}: URDF must have one root link, found {roots}")
-    root = roots[0]
-    empty_root = not links[root]
-    # rest-pose world transform of each link
-    R_conv = Y_UP_TO_Z_UP if up_axis == "y" else np.eye(3)
-    C = np.eye(4)
-    C[:3, :3] = R_conv
-    world: dict[str, np.ndarray] = {root: C}
-    joint_frame: dict[str, np.ndarray] = {}
-    pending = [root]
-    children: dict[str, list[dict]] = {}
-    for j in joints:
-        children.setdefault(j["parent"], []).append(j)
-    while pending:
-        ln = pending.pop()
-        for j in children.get(ln, []):
-            origin = j["origin"]
-            if up_axis == "y" and ln == root and empty_root:
-                origin = np.eye(4)   # the dataset's own y-up → z-up turn; we apply R_conv instead
-            F = world[ln] @ origin
-            joint_frame[j["child"]] = F
-            world[j["child"]] = F
-            if j["child"] in world and j["child"] in pending:
-                raise PartNetFormatError(f"{folder}: cycle in URDF at {j['child']}")
-            pending.append(j["child"])
-    # semantics: mobility_v2.json ids ↔ link_<id>; semantics.txt as fallback
-    v2 = _read_json(folder / "mobility_v2.json")
-    v2_by_link = {}
-    if isinstance(v2, list):
-        for e in v2:
-            if isinstance(e, dict) and "id" in e:
-                v2_by_link[f"link_{e['id']}"] = e
-    sem = {}
-    if (folder / "semantics.txt").exists():
-        for line in (folder / "semantics.txt").read_text(errors="replace").splitlines():
-            bits = line.split()
-            if len(bits) >= 3:
-                sem[bits[0]] = (bits[1], bits[2])
-    names_meta = meta.get("part_names", {}) if isinstance(meta.get("part_names"), dict) else {}
-
-    # screw helpers: a link without visuals between a prismatic and a rotating joint, same axis
-    helper_of: dict[str, dict] = {}
-    for ln, vis in links.items():
-        if vis or ln == root or ln not in child_of:
-            continue
-        up = child_of[ln]
-        downs = children.get(ln, [])
-        if up["type"] == "prismatic" and len(downs) == 1 and downs[0]["type"] in ("revolute", "continuous"):
-            a1 = joint_frame[ln][:3, :3] @ up["axis"]
-            a2 = joint_frame[downs[0]["child"]][:3, :3] @ downs[0]["axis"]
-            if abs(abs(np.dot(a1, a2)) - np.linalg.norm(a1) * np.linalg.norm(a2)) < 1e-6:
-                helper_of[downs[0]["child"]] = up
-
-    order: list[str] = []
-    stack = [root]
-    while stack:  # depth-first, keep URDF order
-        ln = stack.pop(0)
-        order.append(ln)
-        stack = [j["child"] for j in children.get(ln, [])] + stack
-    keep = [ln for ln in order if ln != root or not empty_root]
-    helpers = {child_of[c]["parent"] for c in helper_of}
-    # links without geometry: screw helpers fold into their child; fixed ones vanish (their
-    # children attach to the nearest kept ancestor); moving ones stay as mesh-less parts.
-    keep = [ln for ln in keep if ln not in helpers and
-            (links[ln] or ln == root or child_of[ln]["type"] not in ("fixed", "floating", "planar"))]
+    tree = _Tree(folder, links, joints, up_axis)
+    labels = _Labels(folder, meta, tree)
     parts: list[Part] = []
     index: dict[str, int] = {}
-    label_count: dict[str, int] = {}
-    for ln in keep:
+    for ln in tree.kept():
         mesh = _load_pieces(folder, links[ln])
         if mesh is not None:
-            mesh.apply_transform(world[ln])
-        # label
-        label = None
-        if ln in v2_by_link and v2_by_link[ln].get("name"):
-            label = vocab.map_partnet_label(str(v2_by_link[ln]["name"]))
-        elif ln in sem:
-            label = vocab.map_partnet_label(sem[ln][1])
-        else:
-            label = vocab.map_partnet_label(ln)
-        if ln == root or (ln in child_of and child_of[ln]["parent"] == root and empty_root and
-                          child_of[ln]["type"] == "fixed" and label == "other"):
-            label = "body" if label == "other" else label
-        name = names_meta.get(ln)
-        if not name:
-            k = label_count.get(label, 0)
-            label_count[label] = k + 1
-            name = f"{label}_{k}"
-        joint = _joint_of(ln, child_of, helper_of, joint_frame, v2_by_link, folder)
-        # parent: nearest kept ancestor (helpers / dropped links are skipped)
-        par = -1
-        up = child_of.get(ln)
-        while up is not None:
-            pl = up["parent"]
-            if pl in index:
-                par = index[pl]
-                break
-            up = child_of.get(pl)
+            mesh.apply_transform(tree.world[ln])
+        label, name = labels.of(ln)
+        joint = _joint_of(ln, tree.child_of, tree.helper_of, tree.joint_frame, labels.v2_by_link,
+                          folder)
         index[ln] = len(parts)
-        parts.append(Part(name=name, label=label, parent=par, joint=joint, mesh=mesh))
+        parts.append(Part(name=name, label=label, parent=tree.kept_parent(ln, index),
+                          joint=joint, mesh=mesh))
     if not parts:
         raise PartNetFormatError(f"{folder}: no parts with geometry")
     _single_root(parts)
@@ -377,22 +288,143 @@ def load_partnet(folder: os.PathLike, up_axis: str = "auto") -> ArticulatedObjec
         _place_on_floor(obj)
     for p in parts:
         p.fit_bbox_to_mesh()
-    texts = _read_json(folder / "descriptions.json")
-    if isinstance(texts, dict) and "descriptions" in texts:
-        obj.metadata["descriptions"] = texts["descriptions"]
-    else:
-        for fname in ("descriptions.txt", "description.txt", "text.txt"):
-            if (folder / fname).exists():
-                lines = [x.strip() for x in (folder / fname).read_text(errors="replace").splitlines() if x.strip()]
-                if lines:
-                    obj.metadata["descriptions"] = {"sentence": lines}
-                break
+    texts = _descriptions(folder)
+    if texts is not None:
+        obj.metadata["descriptions"] = texts
     obj.metadata["source"] = str(folder)
     obj.metadata["up_axis"] = up_axis
     if isinstance(meta.get("metadata"), dict):
         for k, v in meta["metadata"].items():
             obj.metadata.setdefault(k, v)
     return obj.validate()
+
+
+class _Tree:
+    """The link tree of a PartNet URDF at rest in the z-up object frame: link poses, joint
+    frames, screw helpers and the links that become parts."""
+
+    def __init__(self, folder: Path, links: dict, joints: list[dict], up_axis: str):
+        self.links = links
+        self.child_of = {j["child"]: j for j in joints}
+        roots = [ln for ln in links if ln not in self.child_of]
+        if len(roots) != 1:
+            raise PartNetFormatError(f"{folder}: URDF must have one root link, found {roots}")
+        self.root = roots[0]
+        self.empty_root = not links[self.root]
+        self.children: dict[str, list[dict]] = {}
+        for j in joints:
+            self.children.setdefault(j["parent"], []).append(j)
+        self._poses(folder, up_axis)
+        self.helper_of = self._screw_helpers()
+
+    def _poses(self, folder: Path, up_axis: str) -> None:
+        C = np.eye(4)
+        C[:3, :3] = Y_UP_TO_Z_UP if up_axis == "y" else np.eye(3)
+        self.world: dict[str, np.ndarray] = {self.root: C}
+        self.joint_frame: dict[str, np.ndarray] = {}
+        pending = [self.root]
+        while pending:
+            ln = pending.pop()
+            for j in self.children.get(ln, []):
+                origin = j["origin"]
+                if up_axis == "y" and ln == self.root and self.empty_root:
+                    origin = np.eye(4)   # the dataset's own y-up → z-up turn; C does it instead
+                F = self.world[ln] @ origin
+                self.joint_frame[j["child"]] = F
+                self.world[j["child"]] = F
+                if j["child"] in self.world and j["child"] in pending:
+                    raise PartNetFormatError(f"{folder}: cycle in URDF at {j['child']}")
+                pending.append(j["child"])
+
+    def _screw_helpers(self) -> dict[str, dict]:
+        """A link without visuals between a prismatic and a rotating joint on one axis:
+        the rotating child -> the prismatic joint."""
+        helper_of: dict[str, dict] = {}
+        for ln, vis in self.links.items():
+            if vis or ln == self.root or ln not in self.child_of:
+                continue
+            up, downs = self.child_of[ln], self.children.get(ln, [])
+            if up["type"] == "prismatic" and len(downs) == 1 \
+                    and downs[0]["type"] in ("revolute", "continuous"):
+                a1 = self.joint_frame[ln][:3, :3] @ up["axis"]
+                a2 = self.joint_frame[downs[0]["child"]][:3, :3] @ downs[0]["axis"]
+                if abs(abs(np.dot(a1, a2)) - np.linalg.norm(a1) * np.linalg.norm(a2)) < 1e-6:
+                    helper_of[downs[0]["child"]] = up
+        return helper_of
+
+    def kept(self) -> list[str]:
+        """Links that become parts, depth-first in URDF order: screw helpers fold into their
+        child, geometry-less fixed links vanish (their children attach to the nearest kept
+        ancestor), geometry-less moving links stay as mesh-less parts."""
+        order: list[str] = []
+        stack = [self.root]
+        while stack:
+            ln = stack.pop(0)
+            order.append(ln)
+            stack = [j["child"] for j in self.children.get(ln, [])] + stack
+        helpers = {self.child_of[c]["parent"] for c in self.helper_of}
+        return [ln for ln in order
+                if (ln != self.root or not self.empty_root) and ln not in helpers
+                and (self.links[ln] or ln == self.root
+                     or self.child_of[ln]["type"] not in ("fixed", "floating", "planar"))]
+
+    def kept_parent(self, ln: str, index: dict[str, int]) -> int:
+        """Index of the nearest ancestor of ``ln`` that is a part (-1: none)."""
+        up = self.child_of.get(ln)
+        while up is not None:
+            if up["parent"] in index:
+                return index[up["parent"]]
+            up = self.child_of.get(up["parent"])
+        return -1
+
+
+class _Labels:
+    """Part labels and names: mobility_v2.json ids ↔ link_<id>, semantics.txt as fallback,
+    then the link name; names from meta.json's ``part_names`` or ``<label>_<k>``."""
+
+    def __init__(self, folder: Path, meta: dict, tree: _Tree):
+        self.tree = tree
+        v2 = _read_json(folder / "mobility_v2.json")
+        self.v2_by_link = {f"link_{e['id']}": e for e in v2 if isinstance(e, dict) and "id" in e} \
+            if isinstance(v2, list) else {}
+        self.sem = {}
+        if (folder / "semantics.txt").exists():
+            for line in (folder / "semantics.txt").read_text(errors="replace").splitlines():
+                bits = line.split()
+                if len(bits) >= 3:
+                    self.sem[bits[0]] = (bits[1], bits[2])
+        self.names = meta.get("part_names", {}) if isinstance(meta.get("part_names"), dict) else {}
+        self.count: dict[str, int] = {}
+
+    def of(self, ln: str) -> tuple[str, str]:
+        if ln in self.v2_by_link and self.v2_by_link[ln].get("name"):
+            label = vocab.map_partnet_label(str(self.v2_by_link[ln]["name"]))
+        elif ln in self.sem:
+            label = vocab.map_partnet_label(self.sem[ln][1])
+        else:
+            label = vocab.map_partnet_label(ln)
+        t, up = self.tree, self.tree.child_of.get(ln)
+        if ln == t.root or (up is not None and up["parent"] == t.root and t.empty_root
+                            and up["type"] == "fixed" and label == "other"):
+            label = "body" if label == "other" else label
+        name = self.names.get(ln)
+        if not name:
+            k = self.count.get(label, 0)
+            self.count[label] = k + 1
+            name = f"{label}_{k}"
+        return label, name
+
+
+def _descriptions(folder: Path):
+    texts = _read_json(folder / "descriptions.json")
+    if isinstance(texts, dict) and "descriptions" in texts:
+        return texts["descriptions"]
+    for fname in ("descriptions.txt", "description.txt", "text.txt"):
+        if (folder / fname).exists():
+            lines = [x.strip() for x in (folder / fname).read_text(errors="replace").splitlines()
+                     if x.strip()]
+            return {"sentence": lines} if lines else None
+    return None
 
 
 def _joint_of(ln, child_of, helper_of, joint_frame, v2_by_link, folder) -> Joint:
