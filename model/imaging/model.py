@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import logging
 import os
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Optional, Union
 
@@ -32,6 +33,51 @@ SHIPPED = Path(__file__).resolve().parent.parent / "weights" / "image_small.pt"
 # the file is not an image-conditioned checkpoint (or is missing); the one CheckpointError,
 # kept under this name for one release
 ImageModelError = CheckpointError
+
+
+@dataclass
+class ImageExtras:
+    """What an image checkpoint holds beyond a text transformer checkpoint (its entries
+    ``condition = "image"``, ``image_encoder``, ``renders``, ``init``, ``image_train_config``,
+    ``extra_train`` and the optional count heads), typed."""
+    encoder: dict                                   # ImageEncoderConfig fields
+    tail: dict = field(default_factory=dict)        # fine-tuned last block + head conv
+    trunk: dict = field(default_factory=dict)       # blocks of `artformer train image-trunk`
+    trunk_info: dict = field(default_factory=dict)  # where the trunk came from
+    renders: dict = field(default_factory=dict)     # the render set's manifest
+    init: str = "none"                              # the checkpoint the run started from
+    image_train_config: dict = field(default_factory=dict)
+    extra_train: list = field(default_factory=list)
+    count_head: Optional[dict] = None               # END-plan count head
+    count_tokens: Optional[dict] = None             # count-token head
+
+    @classmethod
+    def of(cls, ckpt: dict, path="checkpoint") -> "ImageExtras":
+        if ckpt.get("condition") != "image":
+            raise CheckpointError(f"{path} is a text-conditioned transformer checkpoint, not an "
+                                  f"image model; pass an `artformer train image` checkpoint")
+        enc = ckpt.get("image_encoder") or {}
+        return cls(encoder=dict(enc.get("config") or {}), tail=enc.get("tail") or {},
+                   trunk=enc.get("trunk") or {}, trunk_info=enc.get("trunk_info") or {},
+                   renders=ckpt.get("renders") or {}, init=ckpt.get("init") or "none",
+                   image_train_config=ckpt.get("image_train_config") or {},
+                   extra_train=list(ckpt.get("extra_train") or []),
+                   count_head=ckpt.get("count_head"), count_tokens=ckpt.get("count_tokens"))
+
+    def entries(self) -> dict:
+        """The checkpoint entries (the inverse of ``of``)."""
+        enc = {"config": self.encoder, "tail": self.tail}
+        if self.trunk:
+            enc.update(trunk=self.trunk, trunk_info=self.trunk_info)
+        heads = {k: v for k, v in (("count_head", self.count_head),
+                                   ("count_tokens", self.count_tokens)) if v}
+        return {"condition": "image", "image_encoder": enc, "renders": self.renders,
+                "init": self.init, "image_train_config": self.image_train_config,
+                "extra_train": self.extra_train, **heads}
+
+    def encoder_config(self) -> ImageEncoderConfig:
+        return ImageEncoderConfig(**{k: (tuple(v) if k == "background" else v)
+                                     for k, v in self.encoder.items()})
 
 
 class ImageArticulationModel:
@@ -105,22 +151,17 @@ def load_image_model(path: Union[str, os.PathLike, None] = None,
         raise ImageModelError(f"no image checkpoint at {p}; train one with `artformer train image` "
                               f"(the shipped one is model/weights/image_small.pt)")
     ckpt = read_checkpoint(p, prior=prior)
-    if ckpt.get("condition") != "image":
-        raise ImageModelError(f"{p} is a text-conditioned transformer checkpoint, not an image "
-                              f"model; pass an `artformer train image` checkpoint")
+    extras = ImageExtras.of(ckpt, p)
     try:
         net = build_network(ckpt)
     except CheckpointError as e:
         raise ImageModelError(f"{p}: {e}") from e
     am = ArticulationModel(net, ckpt)
-    enc_info = ckpt.get("image_encoder") or {}
-    cfg = ImageEncoderConfig(**{k: (tuple(v) if k == "background" else v)
-                                for k, v in enc_info.get("config", {}).items()})
-    encoder = ImageEncoder(cfg)
-    if enc_info.get("trunk"):        # blocks fine-tuned by `artformer train image-trunk`
-        encoder.load_tail_state_dict(enc_info["trunk"])
-    if enc_info.get("tail"):
-        encoder.load_tail_state_dict(enc_info["tail"])
+    encoder = ImageEncoder(extras.encoder_config())
+    if extras.trunk:                 # blocks fine-tuned by `artformer train image-trunk`
+        encoder.load_tail_state_dict(extras.trunk)
+    if extras.tail:
+        encoder.load_tail_state_dict(extras.tail)
     encoder.requires_grad_(False)
     counter = _checkpoint_count_head(p, ckpt, "count_head", am, encoder)
     token_counter = _checkpoint_count_head(p, ckpt, "count_tokens", am, encoder)

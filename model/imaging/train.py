@@ -460,16 +460,16 @@ def train_image(rc: ImageRunConfig) -> Path:
 def _saver(rc: ImageRunConfig, p: dict, net, opt, out: Path, prior: str):
     """save_fn of the loop: OUT/last.pt (resumable) and, at the end, OUT/image.pt."""
     from model.articulation.checkpoint import save_checkpoint
+    from .model import ImageExtras
     tc, ic, encoder, data = rc.train, rc.image, p["encoder"], p["data"]
 
     def save(st, final: bool) -> None:
-        extra = {"condition": "image", "targets": getattr(rc.targets, "name", "?"),
-                 "image_encoder": {"config": asdict(encoder.config),
-                                   "tail": encoder.tail_state_dict(), **trunk_entry(p["trunk"])},
-                 "image_train_config": asdict(ic), "renders": p["render_info"],
-                 **({"count_tokens": p["counter_entry"]} if p["counter_entry"] else {}),
-                 "extra_train": p["extra_info"],
-                 "init": ic.init if p["init"] is not None else "none", "ablation": "none",
+        ex = ImageExtras(encoder=asdict(encoder.config), tail=encoder.tail_state_dict(),
+                         **trunk_entry(p["trunk"]), renders=p["render_info"],
+                         init=ic.init if p["init"] is not None else "none",
+                         image_train_config=asdict(ic), extra_train=p["extra_info"],
+                         count_tokens=p["counter_entry"])
+        extra = {**ex.entries(), "targets": getattr(rc.targets, "name", "?"), "ablation": "none",
                  **st.entries()}
         common = dict(stats=data.stats, label_table=data.label_table,
                       text_encoder=tc.text_encoder, data_version=data.data_version, seed=tc.seed,
