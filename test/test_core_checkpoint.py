@@ -150,6 +150,16 @@ def test_shipped_files_load_weights_only_with_the_shipped_prior():
     for name in ("transformer_small.pt", "image_small.pt"):
         ck = read_checkpoint(w / name, "articulation", prior=fp)
         assert CheckpointMeta.of(ck).command.startswith("artformer train")
+    # the image entries read typed, and written back as they were
+    from model.imaging.model import ImageExtras
+    ex = ImageExtras.of(ck)
+    back = ex.entries()
+    assert ex.encoder == ck["image_encoder"]["config"] and ex.renders == ck["renders"]
+    assert back["image_encoder"]["tail"] is ck["image_encoder"]["tail"]
+    assert {k: back[k] for k in ("init", "image_train_config")} == \
+        {k: ck[k] for k in ("init", "image_train_config")}
+    with pytest.raises(CheckpointError, match="not an image model"):
+        ImageExtras.of(read_checkpoint(w / "transformer_small.pt", "articulation"))
 
 
 def test_old_error_names_are_the_one_error():
