@@ -165,8 +165,8 @@ def prepare_object(folder: str, obj_id: str, split: str, cfg: PrepareConfig, ind
         arrays["center"].append(center.astype(np.float32))
         arrays["scale"].append(np.float32(scale))
         if cfg.write_meshes:
-            from model.data.partnet import _obj_bytes
-            atomic_write_bytes(out / "meshes" / obj_id / f"{k}.obj", _obj_bytes(mesh))
+            from model.data.partnet_writer import obj_bytes
+            atomic_write_bytes(out / "meshes" / obj_id / f"{k}.obj", obj_bytes(mesh))
     save_part_arrays(out, obj_id, points=np.stack(arrays["points"]), normals=np.stack(arrays["normals"]),
                      sdf=np.stack(arrays["sdf"]), center=np.stack(arrays["center"]),
                      scale=np.asarray(arrays["scale"], dtype=np.float32))

@@ -15,7 +15,7 @@ from .generate import generate_object
 def _synth_one(args) -> dict:
     out, seed, index, cfg = args
     from model.data.describe import describe
-    from model.data.partnet import write_partnet
+    from model.data.partnet_writer import write_partnet
     folder = Path(out) / f"{index:06d}"
     if (folder / "descriptions.json").exists():
         return {"index": index, "skipped": True}
