@@ -10,6 +10,7 @@ that knows those tables reads back :func:`structured_summary`.
 from __future__ import annotations
 
 import math
+import re
 from typing import Optional
 
 import numpy as np
@@ -509,8 +510,14 @@ def _facts(rng, obj, groups, spatial) -> list[str]:
         arranged: list = []
         np_ = _group_np(rng, obj, label, n, types, idx, spatial, arranged=arranged)
         post = _post(rng, obj, label, n, idx, spatial, bool(arranged))
-        out.append(f"{np_}{post} that {_motion(rng, label, types, n, _opens(spatial, label))}")
+        out.append(f"{_unhinged(np_) if 'hinge' in post else np_}{post} that "
+                   f"{_motion(rng, label, types, n, _opens(spatial, label))}")
     return out
+
+
+def _unhinged(np_: str) -> str:
+    """'a pair of hinged doors' -> 'a pair of doors' (when a hinge phrase follows)."""
+    return re.sub(r"\bhinged (?=\w)", "", np_, count=1)
 
 
 def _cap_first(s: str) -> str:
@@ -590,6 +597,8 @@ def describe(obj: ArticulatedObject, rng: Optional[np.random.Generator] = None,
                 noun = _noun(rng, label, n)
                 hinge = _hinge_phrase(rng, spatial.get(label, {}), verbal=True) \
                     if label in HINGED_LABELS else ""
+                if hinge:
+                    noun = _unhinged(noun)
                 mv = _motion(rng, label, types, n, _opens(spatial, label))
                 if hinge and n == 1:
                     # a second sentence that names the part again by pronoun
