@@ -110,7 +110,7 @@ def test_parser_reads_back_the_dataset_templates():
     import numpy as np
     from model.data.describe import describe
     from model.data.synth import generate_object
-    total = aligned = 0
+    total = aligned = spatial = spatial_ok = 0
     failures = []
     for i in range(12):
         obj = generate_object(seed=7, index=i)
@@ -119,7 +119,11 @@ def test_parser_reads_back_the_dataset_templates():
                 r = alignment_of(t, obj)
                 total += 1
                 aligned += r.aligned
-                if not r.aligned:
+                if r.spatial_ok is not None:     # the spatial facts it states hold too
+                    spatial += 1
+                    spatial_ok += r.spatial_ok
+                if not r.aligned or r.spatial_ok is False:
                     failures.append((t, r.failures))
     assert total > 0
     assert aligned / total >= 0.97, failures[:5]
+    assert spatial >= 30 and spatial_ok / spatial >= 0.97, failures[:5]
