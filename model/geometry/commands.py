@@ -32,6 +32,9 @@ def _train_parser(kind: str) -> argparse.ArgumentParser:
     p.add_argument("--minutes", type=float, default=0.0,
                    help="wall-clock budget in minutes, counted over resumed runs (0 = none): "
                         "the run stops with its checkpoint written when it is spent")
+    p.add_argument("--chunk-minutes", type=float, default=0.0,
+                   help="stop this process after M minutes with its checkpoint written, schedule "
+                        "untouched; the same command with --resume runs the next chunk")
     p.add_argument("--no-progress", action="store_true")
     p.add_argument("--export", metavar="PATH",
                    help="also write a stripped fp16 copy of the final weights to PATH")
@@ -39,23 +42,17 @@ def _train_parser(kind: str) -> argparse.ArgumentParser:
 
 
 def _train(kind: str, argv: list[str]) -> int:
-    import dataclasses
     from .train import RunArgs, export_weights, train_prior, train_sdf
     a = _train_parser(kind).parse_args(argv[2:])
-    if a.minutes < 0:
-        raise ValueError("--minutes must be >= 0")
-    budget = {}
-    if a.minutes:
-        if "minutes" not in {f.name for f in dataclasses.fields(RunArgs)}:
-            raise ValueError("--minutes needs the shared training loop (model.core.training); "
-                             "this checkout's model/geometry/train.py has none")
-        budget["minutes"] = a.minutes
+    if a.minutes < 0 or a.chunk_minutes < 0:
+        raise ValueError("--minutes and --chunk-minutes must be >= 0")
     args = RunArgs(data=a.data, out=a.out, preset=a.preset, steps=a.steps, epochs=a.epochs,
                    batch_size=a.batch_size, lr=a.lr, seed=a.seed, resume=a.resume,
                    threads=a.threads, progress=not a.no_progress,
                    sdf=getattr(a, "sdf", None), n_codebooks=getattr(a, "codebooks", None),
                    codebook_size=getattr(a, "codebook_size", None),
-                   argv=tuple(["artformer", *argv]), **budget)
+                   argv=tuple(["artformer", *argv]), minutes=a.minutes,
+                   chunk_minutes=a.chunk_minutes)
     res = (train_sdf if kind == "sdf" else train_prior)(args)
     import os
     if int(os.environ.get("RANK", "0")) == 0:
@@ -97,6 +94,9 @@ def _eval(argv: list[str]) -> int:
                    help="write geometry_worst_reconstructions.png and geometry_prior_samples.png "
                         "here")
     p.add_argument("--worst", type=int, default=12, help="reconstructions on the worst sheet")
+    p.add_argument("--min-island", type=int, default=None,
+                   help="meshing: remove sign islands of at most this many grid vertices "
+                        "(default: model.geometry.meshing.MIN_ISLAND; 0 keeps them)")
     p.add_argument("--diagnose", action="store_true",
                    help="instead: measure where thin walls are lost (resolution sweep, true SDF "
                         "meshed, decoder error vs distance, box vs iso frame, retrieval, "
@@ -105,6 +105,9 @@ def _eval(argv: list[str]) -> int:
     for name in ("max_parts", "per_label", "labels", "samples_per_label", "worst"):
         if getattr(a, name) < 0:
             raise ValueError(f"--{name.replace('_', '-')} must be >= 0")
+    if a.min_island is not None and a.min_island < 0:
+        raise ValueError("--min-island must be >= 0")
+    mesh_kw = {} if a.min_island is None else {"min_island": a.min_island}
     if not 8 <= a.resolution <= 256:
         raise ValueError(f"--resolution must be in [8, 256], got {a.resolution}")
     import torch
@@ -125,7 +128,7 @@ def _eval(argv: list[str]) -> int:
     res = ev.evaluate(shape, a.data, split=a.split, max_parts=a.max_parts or None,
                       per_label_cap=a.per_label or None, resolution=a.resolution,
                       labels=a.labels or None, samples_per_label=a.samples_per_label,
-                      steps=a.steps, seed=a.seed, keep_rows=True)
+                      steps=a.steps, seed=a.seed, keep_rows=True, mesh_kw=mesh_kw)
     rows = res.pop("rows")
     res["checkpoints"] = shape.info
     res["command"] = " ".join(["artformer", *argv])

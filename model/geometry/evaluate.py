@@ -131,7 +131,8 @@ def compare(pred, true: TruePart, seed: int = 0, iou: bool = True) -> dict:
     from model.core import meshops
     from .meshing import components
     out = {"faces": int(len(pred.faces)), "components": 0, "floater_faces": 0,
-           "watertight": False, "fscore": 0.0, "chamfer": float("nan"), "iou": 0.0}
+           "watertight": False, "fscore": 0.0, "chamfer": float("nan"),
+           "iou": 0.0 if iou else float("nan")}
     if pred.is_empty or len(pred.faces) == 0:
         out["empty"] = True
         return out
@@ -251,7 +252,7 @@ def reconstruct(shape, parts, idx: list[int], *, resolution: int = 64, seed: int
 
 def prior_samples(shape, parts, *, n: int, steps: int, seed: int, resolution: int,
                   texts: Optional[list[str]] = None, candidates: int = 48,
-                  truth: Optional[dict] = None) -> list[dict]:
+                  truth: Optional[dict] = None, mesh_kw=None) -> list[dict]:
     """``n`` prior samples per label text, each compared to the nearest true held-out part
     of its text (Chamfer in the box frame over at most ``candidates`` parts), after fitting
     the sample into that part's metric bbox as the pipeline does."""
@@ -272,7 +273,7 @@ def prior_samples(shape, parts, *, n: int, steps: int, seed: int, resolution: in
         pool = [pool[k] for k in pick[:candidates].tolist()]
         clouds = [parts.points[i].float().numpy() for i in pool]
         z = shape.sample_for_labels([t] * n, steps=steps, generator=gen)
-        for k, r in enumerate(shape.decode(z, resolution)):
+        for k, r in enumerate(shape.decode(z, resolution, **(mesh_kw or {}))):
             row = {"label": part_label(t), "text": t, "sample": k, "status": r.status}
             if not r.ok:
                 row.update(fscore=0.0, chamfer=float("nan"), iou=0.0, components=0,
@@ -314,7 +315,8 @@ def diversity(rows: list[dict]) -> dict[str, float]:
 def evaluate(shape, data: str, *, split: str = "test", max_parts: Optional[int] = 300,
              per_label_cap: Optional[int] = None, resolution: int = 64,
              labels: Optional[int] = None, samples_per_label: int = 8, steps: int = 50,
-             seed: int = 0, progress: bool = True, keep_rows: bool = False) -> dict:
+             seed: int = 0, progress: bool = True, keep_rows: bool = False,
+             mesh_kw: Optional[dict] = None) -> dict:
     """Per-label reconstruction and prior-sample quality on held-out parts (see module doc).
 
     ``labels``: number of most frequent label texts to sample from the prior (None = all).
@@ -325,7 +327,7 @@ def evaluate(shape, data: str, *, split: str = "test", max_parts: Optional[int] 
     idx = select_parts(parts, per_label=per_label_cap, max_parts=max_parts, seed=seed)
     truth: dict = {}
     rows = reconstruct(shape, parts, idx, resolution=resolution, seed=seed, progress=progress,
-                       truth=truth)
+                       truth=truth, mesh_kw=mesh_kw)
     allsum = summarise(rows)
     recon = {"parts": len(idx), "split": split, "resolution": resolution,
              "data_version": parts.data_version, **allsum,
@@ -346,7 +348,8 @@ def evaluate(shape, data: str, *, split: str = "test", max_parts: Optional[int] 
         if labels is not None:
             texts = texts[:labels]
         srows = prior_samples(shape, parts, n=samples_per_label, steps=steps, seed=seed,
-                              resolution=resolution, texts=texts, truth=truth)
+                              resolution=resolution, texts=texts, truth=truth,
+                              mesh_kw=mesh_kw)
         ssum = summarise(srows)
         div = diversity(srows)
         ok = [r for r in srows if r.get("watertight") and not r.get("empty")]
@@ -460,16 +463,20 @@ def worst_sheet(path, rows: list[dict], k: int = 12, size: int = 150) -> None:
 
 
 def samples_sheet(path, rows: list[dict], per_row: int = 6, size: int = 130) -> None:
-    """Prior samples, one sheet row per label text (box-frame meshes)."""
-    groups: dict[str, list[dict]] = {}
+    """Prior samples, one sheet row per part label (box-frame meshes; a label with several
+    category texts shows samples of each in turn)."""
+    groups: dict[str, dict[str, list[dict]]] = {}
     for r in rows:
-        groups.setdefault(r["text"], []).append(r)
+        groups.setdefault(r["label"], {}).setdefault(r["text"], []).append(r)
     tiles, titles = [], []
-    for t, rs in sorted(groups.items()):
-        tiles.append([render_mesh(r.get("box_mesh", r["mesh"]), size) for r in rs[:per_row]])
-        f = np.mean([r["fscore"] for r in rs])
-        titles.append(f"{t}: F {f:.2f} (nearest true part), "
-                      f"comp {np.mean([r['components'] for r in rs]):.1f}")
+    for lab, by_text in sorted(groups.items()):
+        seq = [r for k in range(max(len(v) for v in by_text.values()))
+               for v in by_text.values() if k < len(v) for r in [v[k]]][:per_row]
+        tiles.append([render_mesh(r.get("box_mesh", r["mesh"]), size) for r in seq])
+        f = np.mean([r["fscore"] for r in seq])
+        titles.append(f"{lab} ({', '.join(sorted({r['text'].split(', ')[0] for r in seq}))}): "
+                      f"F {f:.2f} vs nearest true part, "
+                      f"{np.mean([r['components'] for r in seq]):.1f} components on average")
     contact_sheet(path, tiles, titles,
                   title="prior samples per label (box frame; red: extra components)")
 
