@@ -289,8 +289,6 @@ def run_batch(prompts: Sequence[str], out_dir: os.PathLike, *, samples: int = 1,
     Raises BatchError before starting when the options are bad or the manifest records
     other prompts for the same job ids.
     """
-    import multiprocessing as mp
-
     from model.pipeline.api import GenerationConfig
     from model.pipeline.generator import validate_config
 
@@ -306,6 +304,28 @@ def run_batch(prompts: Sequence[str], out_dir: os.PathLike, *, samples: int = 1,
     root.mkdir(parents=True, exist_ok=True)
     manifest = root / MANIFEST
     jobs = plan_jobs(prompts, samples, seed)
+    todo = _pending(jobs, manifest, root, retry_failed)
+    summary = BatchSummary(str(root), str(manifest), total=len(jobs),
+                           skipped=len(jobs) - len(todo))
+    t0 = time.perf_counter()
+    if todo:
+        if config.threads == GenerationConfig().threads:   # left at the default: share the cores
+            config = replace(config, threads=min(64, max(1, (os.cpu_count() or 1) // workers)))
+        _clean_partial(root)
+        _end_with_newline(manifest)
+        if workers == 1:                        # in this process: no spawn, no second import
+            _run_here(config, todo, root, manifest, summary, t0, audit, preview, mesh_uri,
+                      progress)
+        else:
+            _Pool(config, root, manifest, summary, t0, (audit, preview, mesh_uri), progress,
+                  min(workers, len(todo))).run(todo)
+    _compact(manifest, jobs)
+    return summary
+
+
+def _pending(jobs: list, manifest: Path, root: Path, retry_failed: bool) -> list:
+    """The jobs the manifest does not record as finished; BatchError when it records other
+    prompts or seeds under the same job ids."""
     seen = read_manifest(manifest)
     for j in jobs:
         e = seen.get(j.id)
@@ -313,99 +333,98 @@ def run_batch(prompts: Sequence[str], out_dir: os.PathLike, *, samples: int = 1,
             raise BatchError(f"{manifest} records job {j.id} as prompt {e.get('prompt')!r} seed "
                              f"{e.get('seed')}, not {j.prompt!r} seed {j.seed}: resume with the "
                              f"same prompts file, --samples and --seed, or use another --out")
-    todo = [j for j in jobs if not _finished(seen.get(j.id), root, retry_failed)]
-    summary = BatchSummary(str(root), str(manifest), total=len(jobs),
-                           skipped=len(jobs) - len(todo))
-    t0 = time.perf_counter()
-    if not todo:
-        _compact(manifest, jobs)
-        return summary
-    if config.threads == GenerationConfig().threads:     # left at the default: share the cores
-        config = replace(config, threads=min(64, max(1, (os.cpu_count() or 1) // workers)))
-    _clean_partial(root)
-    _end_with_newline(manifest)
-    if workers == 1:                            # in this process: no spawn, no second import
-        _run_here(config, todo, root, manifest, summary, t0, audit, preview, mesh_uri, progress)
-        _compact(manifest, jobs)
-        return summary
-    cfg = asdict(config)
-    n_workers = min(workers, len(todo))
-    ctx = mp.get_context("spawn")
-    job_q, res_q = ctx.Queue(), ctx.Queue()
-    for j in todo:
-        job_q.put(asdict(j))
-    procs: dict[int, object] = {}
+    return [j for j in jobs if not _finished(seen.get(j.id), root, retry_failed)]
 
-    def start_worker():
-        p = ctx.Process(target=_worker, args=(cfg, str(root), job_q, res_q, audit, preview,
-                                              mesh_uri, os.getpid()), daemon=True)
+
+class _Pool:
+    """Worker processes (spawned) fed from one job queue; the parent alone writes the
+    manifest. A worker that dies has its job recorded as failed and is replaced."""
+
+    def __init__(self, config, root: Path, manifest: Path, summary: BatchSummary, t0: float,
+                 export_opts: tuple, progress, n_workers: int):
+        import multiprocessing as mp
+
+        self.cfg, self.root, self.manifest = asdict(config), root, manifest
+        self.summary, self.t0, self.export_opts = summary, t0, export_opts
+        self.progress, self.n_workers = progress, n_workers
+        self.ctx = mp.get_context("spawn")
+        self.job_q, self.res_q = self.ctx.Queue(), self.ctx.Queue()
+        self.procs: dict[int, object] = {}
+        self.in_flight: dict[int, str] = {}          # worker pid -> job id
+
+    def _start_worker(self) -> None:
+        p = self.ctx.Process(target=_worker, args=(self.cfg, str(self.root), self.job_q,
+                                                   self.res_q, *self.export_opts, os.getpid()),
+                             daemon=True)
         p.start()
-        procs[p.pid] = p
+        self.procs[p.pid] = p
 
-    for _ in range(n_workers):
-        start_worker()
-    by_id = {j.id: j for j in todo}
-    in_flight: dict[int, str] = {}              # worker pid -> job id
-    remaining = set(by_id)
-    load_failures = 0
-    try:
-        while remaining:
-            try:
-                msg = res_q.get(timeout=1.0)
-            except queue.Empty:
-                msg = None
-            if msg is None:
-                for pid, p in list(procs.items()):
-                    if p.is_alive():
-                        continue
-                    procs.pop(pid)
-                    jid = in_flight.pop(pid, None)
-                    if jid is not None and jid in remaining:
-                        j = by_id[jid]
-                        entry = {"id": j.id, "index": j.index, "sample": j.sample,
-                                 "prompt": j.prompt, "seed": j.seed, "status": "error",
-                                 "error": f"worker process {pid} died (exit code {p.exitcode})",
-                                 "worker": pid, "audit": None, "out_dir": None, "urdf": None,
-                                 "meshes": None, "preview": None, "category": None,
-                                 "parts": None, "timings_s": {}, "seconds": None,
-                                 "finished_utc": _now()}
-                        _append(manifest, entry)
-                        remaining.discard(jid)
-                        summary.failed += 1
-                        if progress:
-                            progress(entry, summary)
-                    if remaining and len(procs) < n_workers:
-                        log.warning("worker %s exited (code %s); starting another", pid, p.exitcode)
-                        start_worker()
-                continue
-            kind = msg["kind"]
-            if kind == "load_failed":
-                load_failures += 1
-                if load_failures >= n_workers:
-                    raise BatchError(f"the model could not be loaded: {msg['error']}")
-            elif kind == "start":
-                in_flight[msg["worker"]] = msg["id"]
-            elif kind == "done":
-                entry = msg["entry"]
-                in_flight.pop(msg["worker"], None)
-                if entry["id"] not in remaining:
+    def run(self, todo: list) -> None:
+        for j in todo:
+            self.job_q.put(asdict(j))
+        for _ in range(self.n_workers):
+            self._start_worker()
+        self.by_id = {j.id: j for j in todo}
+        self.remaining = set(self.by_id)
+        load_failures = 0
+        try:
+            while self.remaining:
+                try:
+                    msg = self.res_q.get(timeout=1.0)
+                except queue.Empty:
+                    self._reap()
                     continue
-                remaining.discard(entry["id"])
-                _record(manifest, entry, summary, t0, progress)
-    except BaseException:                       # interrupted or failed: stop the workers now
-        for p in procs.values():
-            p.terminate()
-        raise
-    finally:
-        for _ in procs:
-            job_q.put(None)
+                if msg["kind"] == "load_failed":
+                    load_failures += 1
+                    if load_failures >= self.n_workers:
+                        raise BatchError(f"the model could not be loaded: {msg['error']}")
+                elif msg["kind"] == "start":
+                    self.in_flight[msg["worker"]] = msg["id"]
+                elif msg["kind"] == "done":
+                    entry = msg["entry"]
+                    self.in_flight.pop(msg["worker"], None)
+                    if entry["id"] in self.remaining:
+                        self.remaining.discard(entry["id"])
+                        _record(self.manifest, entry, self.summary, self.t0, self.progress)
+        except BaseException:                   # interrupted or failed: stop the workers now
+            for p in self.procs.values():
+                p.terminate()
+            raise
+        finally:
+            self._stop()
+
+    def _reap(self) -> None:
+        """Record the job of every worker that died as failed; start a replacement."""
+        for pid, p in list(self.procs.items()):
+            if p.is_alive():
+                continue
+            self.procs.pop(pid)
+            jid = self.in_flight.pop(pid, None)
+            if jid is not None and jid in self.remaining:
+                j = self.by_id[jid]
+                entry = {"id": j.id, "index": j.index, "sample": j.sample, "prompt": j.prompt,
+                         "seed": j.seed, "status": "error",
+                         "error": f"worker process {pid} died (exit code {p.exitcode})",
+                         "worker": pid, "audit": None, "out_dir": None, "urdf": None,
+                         "meshes": None, "preview": None, "category": None, "parts": None,
+                         "timings_s": {}, "seconds": None, "finished_utc": _now()}
+                _append(self.manifest, entry)
+                self.remaining.discard(jid)
+                self.summary.failed += 1
+                if self.progress:
+                    self.progress(entry, self.summary)
+            if self.remaining and len(self.procs) < self.n_workers:
+                log.warning("worker %s exited (code %s); starting another", pid, p.exitcode)
+                self._start_worker()
+
+    def _stop(self) -> None:
+        for _ in self.procs:
+            self.job_q.put(None)
         deadline = time.time() + 10
-        for p in procs.values():
+        for p in self.procs.values():
             p.join(timeout=max(0.1, deadline - time.time()))
             if p.is_alive():
                 p.terminate()
                 p.join(timeout=5)
-        job_q.cancel_join_thread()
-        summary.seconds = time.perf_counter() - t0
-    _compact(manifest, jobs)
-    return summary
+        self.job_q.cancel_join_thread()
+        self.summary.seconds = time.perf_counter() - self.t0
