@@ -210,8 +210,13 @@ class TextCache:
     @classmethod
     def load(cls, path: Path, encoder: str) -> "TextCache":
         if Path(path).exists():
-            d = torch.load(path, map_location="cpu", weights_only=False)
-            if d.get("encoder") == encoder:
+            from model.core.checkpoint import load_weights_only
+            try:
+                d = load_weights_only(path)
+            except Exception as e:  # noqa: BLE001 - a cache is rebuilt, never trusted
+                log.warning("text-state cache %s unreadable (%s); rebuilding it", path, e)
+                return cls(encoder)
+            if isinstance(d, dict) and d.get("encoder") == encoder:
                 return cls(encoder, d["index"], d["states"])
         return cls(encoder)
 

@@ -131,7 +131,8 @@ def load_feature_cache(render_root: os.PathLike, split: int = CACHE_SPLIT, tag: 
     path = cache_path(render_root, split, tag)
     if not path.exists():
         raise FileNotFoundError(f"no feature cache at {path}; `artformer train image` builds it")
-    return torch.load(path, map_location="cpu", weights_only=False)
+    from model.core.checkpoint import load_weights_only
+    return load_weights_only(path)
 
 
 class ViewFeatures:
