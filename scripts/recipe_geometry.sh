@@ -1,0 +1,156 @@
+#!/usr/bin/env bash
+# Retraining recipe of the shape prior (tri-plane SDF auto-encoder + codebook diffusion prior)
+# on current procedural data. Every stage is resumable: run this script again after an
+# interruption and it continues where it stopped (finished stages are skipped, training
+# resumes from OUT/ckpt.pt). No stage runs longer than CHUNK_MIN minutes in one go.
+#
+#   bash scripts/recipe_geometry.sh              # everything: data, auto-encoder, prior, eval
+#   STAGE=sdf bash scripts/recipe_geometry.sh    # one stage: data | cache | sdf | prior | eval | export
+#
+# Settings (environment variables, defaults below): N_OBJECTS, SEED, VERSION, PRESET,
+# SDF_STEPS, PRIOR_STEPS, THREADS, CHUNK_MIN, RUNS. Each run folder gets RECIPE.md with the
+# command lines, seed, data version, device and wall times of every chunk.
+#
+# Why these settings: docs/geometry.md, "How good it is". Estimated wall time on 2 CPU
+# cores: in the RECIPE block of docs/geometry.md.
+set -euo pipefail
+cd "$(dirname "${BASH_SOURCE[0]}")/.."
+source scripts/env.sh
+
+N_OBJECTS=${N_OBJECTS:-10000}
+SEED=${SEED:-0}
+VERSION=${VERSION:-synth-v4}
+NAME=${NAME:-v4}
+PRESET=${PRESET:-small-fine}
+SDF_STEPS=${SDF_STEPS:-26000}
+PRIOR_STEPS=${PRIOR_STEPS:-20000}
+THREADS=${THREADS:-2}
+CHUNK_MIN=${CHUNK_MIN:-140}            # training minutes per invocation (+ <= 10 min loading: <= 2.5 h)
+RUNS=${RUNS:-runs/geometry_${NAME}}
+STAGE=${STAGE:-all}
+SYNTH=data/synth/$NAME
+DATA=data/prepared/$NAME
+SDF_RUN=$RUNS/sdf_$PRESET
+PRIOR_RUN=$RUNS/prior_$PRESET
+mkdir -p "$RUNS"
+if ! python -c "from model.geometry.config import get_preset; get_preset('$PRESET')" 2>/dev/null; then
+  cat >&2 <<EOF
+[recipe] preset '$PRESET' is not in model/geometry/config.py. The measured cause of broken walls
+is the 32x32 tri-plane (docs/geometry.md, "How good it is"); the fine preset is 'small' with
+  sdf=SDFConfig(plane_res=64, vae_channels=(32, 64, 64, 64))
+(same z_dim 256, so the prior and the transformer's code layout are unchanged). Add it to
+_presets() under the name '$PRESET', or run with PRESET=small to retrain the shipped sizes.
+EOF
+  exit 2
+fi
+
+device() {
+  python - <<'EOF'
+import platform, os
+try:
+    import torch
+    gpu = torch.cuda.get_device_name(0) if torch.cuda.is_available() else "none"
+except Exception:
+    gpu = "unknown"
+cpu = platform.processor() or platform.machine()
+try:
+    for line in open("/proc/cpuinfo"):
+        if line.startswith("model name"):
+            cpu = line.split(":", 1)[1].strip()
+            break
+except OSError:
+    pass
+print(f"{cpu}, {os.cpu_count()} cores visible, GPU {gpu}")
+EOF
+}
+
+record() {   # record FOLDER TEXT...: append a line to FOLDER/RECIPE.md
+  local dir=$1; shift
+  mkdir -p "$dir"
+  local version=$VERSION
+  [ -f "$DATA/manifest.json" ] && version=$(python -c "import json, sys; print(json.load(open(sys.argv[1])).get('data_version', ''))" "$DATA/manifest.json")
+  [ -f "$dir/RECIPE.md" ] || printf '# How this folder was made\n\nseed %s, data %s (data_version %s), preset %s, device: %s\n\n' \
+    "$SEED" "$DATA" "$version" "$PRESET" "$(device)" > "$dir/RECIPE.md"
+  printf -- '- %s\n' "$*" >> "$dir/RECIPE.md"
+}
+
+ckpt_step() {   # ckpt_step FILE: the step stored in a run checkpoint (0 when absent)
+  [ -f "$1" ] || { echo 0; return; }
+  python -c "import sys, torch; print(int(torch.load(sys.argv[1], map_location='cpu', weights_only=True).get('step', 0)))" "$1"
+}
+
+train_chunks() {   # train_chunks KIND OUT STEPS ARGS...: resumable chunks of <= CHUNK_MIN min
+  local kind=$1 out=$2 steps=$3; shift 3
+  local cmd=(artformer train "$kind" --data "$DATA" --preset "$PRESET" --out "$out"
+             --seed "$SEED" --threads "$THREADS" --steps "$steps" --no-progress
+             --chunk-minutes "$CHUNK_MIN" --resume "$@")
+  while [ "$(ckpt_step "$out/ckpt.pt")" -lt "$steps" ]; do
+    local t0; t0=$(date -u +%s)
+    local before; before=$(ckpt_step "$out/ckpt.pt")
+    echo "[recipe] $(date -u +%FT%TZ) ${cmd[*]} (from step $before, at most $CHUNK_MIN min)"
+    set +e
+    # --chunk-minutes stops the process cleanly with its checkpoint; timeout is only a
+    # backstop (loading the cached box-frame samples comes before the loop's clock starts)
+    timeout --signal=TERM "$(( (CHUNK_MIN + 10) * 60 ))" "${cmd[@]}"
+    local rc=$?
+    set -e
+    local after; after=$(ckpt_step "$out/ckpt.pt")
+    record "$out" "$(date -u +%FT%TZ) \`${cmd[*]}\`: steps $before -> $after, $(( $(date -u +%s) - t0 )) s wall, exit $rc"
+    if [ "$rc" -ne 0 ] && [ "$rc" -ne 124 ]; then
+      echo "[recipe] training failed (exit $rc); fix it and run the recipe again" >&2
+      exit "$rc"
+    fi
+    if [ "$after" -le "$before" ]; then
+      echo "[recipe] no checkpoint progress in one chunk; raise CHUNK_MIN or lower ckpt_every" >&2
+      exit 1
+    fi
+    if [ "${ONE_CHUNK:-0}" = 1 ]; then echo "[recipe] ONE_CHUNK=1: stopping after one chunk"; exit 0; fi
+  done
+  return 0
+}
+
+stage_data() {
+  if [ ! -f "$DATA/manifest.json" ] || [ "$(ls "$DATA/objects" 2>/dev/null | wc -l)" -lt "$N_OBJECTS" ]; then
+    local t0; t0=$(date -u +%s)
+    artformer data synth --n "$N_OBJECTS" --out "$SYNTH" --seed "$SEED" --workers "$THREADS"
+    artformer data prepare --src "$SYNTH" --out "$DATA" --workers "$THREADS" --version "$VERSION" --seed "$SEED"
+    record "$RUNS" "$(date -u +%FT%TZ) data: \`artformer data synth --n $N_OBJECTS --out $SYNTH --seed $SEED\` + \`artformer data prepare --src $SYNTH --out $DATA --version $VERSION --seed $SEED\`: $(( $(date -u +%s) - t0 )) s wall"
+  fi
+}
+
+stage_cache() {   # the one-time exact box-frame re-sampling of train/val, cached in SDF_RUN/cache
+  local t0; t0=$(date -u +%s)
+  python - "$DATA" "$PRESET" "$SEED" "$SDF_RUN/cache" <<'EOF'
+import sys
+from model.geometry.config import get_preset
+from model.geometry.data import load_parts
+data, preset, seed, cache = sys.argv[1], sys.argv[2], int(sys.argv[3]), sys.argv[4]
+max_sdf = get_preset(preset).sdf_train.max_sdf
+for split in ("train", "val"):
+    p = load_parts(data, split, progress=True, max_sdf=max_sdf, seed=seed, cache_dir=cache)
+    print(f"{split}: {len(p)} parts cached in {cache}")
+EOF
+  record "$SDF_RUN" "$(date -u +%FT%TZ) box-frame samples of $DATA cached in $SDF_RUN/cache: $(( $(date -u +%s) - t0 )) s wall"
+}
+
+stage_sdf()   { [ -d "$SDF_RUN/cache" ] || stage_cache; train_chunks sdf "$SDF_RUN" "$SDF_STEPS"; }
+stage_prior() { train_chunks prior "$PRIOR_RUN" "$PRIOR_STEPS" --sdf "$SDF_RUN/ckpt.pt"; }
+
+stage_eval() {
+  local t0; t0=$(date -u +%s)
+  artformer eval geometry --data "$DATA" --sdf "$SDF_RUN/ckpt.pt" --prior "$PRIOR_RUN/ckpt.pt" \
+    --per-label 30 --samples-per-label 8 --json "$RUNS/eval_geometry.json" --figures "$RUNS/figures"
+  record "$RUNS" "$(date -u +%FT%TZ) eval: \`artformer eval geometry --data $DATA --sdf $SDF_RUN/ckpt.pt --prior $PRIOR_RUN/ckpt.pt --per-label 30 --samples-per-label 8\`: $(( $(date -u +%s) - t0 )) s wall"
+}
+
+stage_export() {   # stripped fp16 copies beside the runs (committing them is a separate step)
+  python -c "from model.geometry.train import export_weights as e; \
+e('$SDF_RUN/ckpt.pt', '$RUNS/sdf_$PRESET.pt', 'sdf'); e('$PRIOR_RUN/ckpt.pt', '$RUNS/prior_$PRESET.pt', 'prior')"
+  record "$RUNS" "$(date -u +%FT%TZ) export: $RUNS/sdf_$PRESET.pt, $RUNS/prior_$PRESET.pt"
+}
+
+case "$STAGE" in
+  all) stage_data; stage_sdf; stage_prior; stage_eval; stage_export ;;
+  data|cache|sdf|prior|eval|export) "stage_$STAGE" ;;
+  *) echo "STAGE must be all|data|cache|sdf|prior|eval|export, got $STAGE" >&2; exit 2 ;;
+esac
