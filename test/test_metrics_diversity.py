@@ -145,3 +145,19 @@ def test_generator_samples_layouts_when_a_structure_is_forced_only():
     gen.config.layout_sampling = "never"
     assert len(keys(gen.decode_trees("a wardrobe", seed=0, samples=3,
                                      structure={"door": 2})[0])) == 1
+
+
+def test_sample_choices_draws_labels_and_plan_counts_from_the_seed(am):
+    """sample_choices: off (default) is the plain decoding; at temperature 0 it draws nothing;
+    on, the plan counts are draws from the plan head (a vague prompt gets several counts)."""
+    cond, mask = am.encode_text(["a cabinet"] * 8)
+    kw = dict(seed=0, follow_plan=True)
+    plain = am.decode(cond, mask, temperature=0.3, **kw)
+    default = am.decode(cond, mask, temperature=0.3, sample_choices=False, **kw)
+    assert [t.labels for t in plain] == [t.labels for t in default]
+    greedy = am.decode(cond, mask, temperature=0.0, **kw)
+    assert [t.labels for t in am.decode(cond, mask, temperature=0.0, sample_choices=True, **kw)] \
+        == [t.labels for t in greedy]
+    drawn = am.decode(cond, mask, temperature=1.0, sample_choices=True, **kw)
+    assert all(lab in am.table_labels for t in drawn for lab in t.labels)
+    assert len({tuple(sorted(Counter(t.labels).items())) for t in drawn}) >= 2
