@@ -16,18 +16,18 @@ visual meshes an engine cannot read (GLB) are left out of its copy (noted in the
 """
 from __future__ import annotations
 
-import contextlib
 import logging
 import math
 import os
-import sys
 import tempfile
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Callable, Optional
+from typing import Optional
 
 import numpy as np
+
+from .simcheck_backends import BACKENDS
 
 log = logging.getLogger(__name__)
 
@@ -91,31 +91,14 @@ class SimReport:
 # -- the joint set to test -------------------------------------------------------------------
 
 
-@dataclass
-class _UJoint:
-    name: str
-    type: str
-    lower: float
-    upper: float
-    child: str
+def _urdf_joints(path: Path) -> list:
+    """The URDF's joints (model.export.urdfmodel; meshes are not read: a missing mesh is
+    each simulator's finding)."""
+    from .urdfmodel import read_urdf
+    return read_urdf(path, geometry=False).joints
 
 
-def _urdf_joints(path: Path) -> list[_UJoint]:
-    from lxml import etree
-    root = etree.parse(str(path)).getroot()
-    out = []
-    for j in root.findall("joint"):
-        t = j.get("type")
-        lim = j.find("limit")
-        lo = float(lim.get("lower", 0.0)) if lim is not None else 0.0
-        hi = float(lim.get("upper", 0.0)) if lim is not None else 0.0
-        if t == "continuous":
-            lo, hi = -math.pi, math.pi
-        out.append(_UJoint(j.get("name"), t, lo, hi, j.find("child").get("link")))
-    return out
-
-
-def _poses_to_test(obj, joints: list[_UJoint]):
+def _poses_to_test(obj, joints: list):
     """[(urdf joint values, expected link frames or None)]: ratios 0/0.5/1 and each joint
     alone at each limit."""
     moving = [j for j in joints if j.type in ("revolute", "prismatic", "continuous")]
@@ -179,203 +162,6 @@ def _pose_errors(got: dict[str, np.ndarray], want: dict[str, np.ndarray]) -> tup
     return dp, dr
 
 
-def _quat_xyzw_to_matrix(q) -> np.ndarray:
-    x, y, z, w = q
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
-                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
-                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
-
-
-def _pose(pos, R) -> np.ndarray:
-    T = np.eye(4)
-    T[:3, :3] = R
-    T[:3, 3] = pos
-    return T
-
-
-# -- per simulator ----------------------------------------------------------------------------
-# Each backend: load(path) -> handle, returns (set_values(dict) -> link poses dict,
-# joint names -> (lower, upper) as the simulator sees them, close()).
-
-
-def _backend_yourdfpy(path: Path):
-    import warnings
-
-    import yourdfpy
-    with warnings.catch_warnings():  # yourdfpy 0.0.58 float()s 1-element arrays
-        warnings.simplefilter("ignore", DeprecationWarning)
-        urdf = yourdfpy.URDF.load(str(path), build_scene_graph=True, load_meshes=False)
-    # yourdfpy only warns about meshes it cannot find; a consumer would get no geometry.
-    from .importer import resolve_mesh_path
-    missing = sorted({g.geometry.mesh.filename for link in urdf.robot.links
-                      for g in [*link.visuals, *link.collisions]
-                      if g.geometry is not None and g.geometry.mesh is not None
-                      and not resolve_mesh_path(g.geometry.mesh.filename, path.parent).exists()})
-    if missing:
-        raise RuntimeError(f"mesh files not found: {missing[:5]}"
-                           f"{' and %d more' % (len(missing) - 5) if len(missing) > 5 else ''}")
-    movable = {n: (j.limit.lower if j.limit is not None else None,
-                   j.limit.upper if j.limit is not None else None)
-               for n, j in urdf.joint_map.items() if j.type != "fixed"}
-    names = list(urdf.actuated_joint_names)
-    base = urdf.base_link
-
-    def set_values(vals: dict) -> dict:
-        cfg = np.array([vals.get(n, 0.0) for n in names], dtype=np.float64)
-        with warnings.catch_warnings():  # yourdfpy 0.0.58 float()s 1-element arrays
-            warnings.simplefilter("ignore", DeprecationWarning)
-            urdf.update_cfg(cfg)
-        return {ln: urdf.get_transform(ln, base) for ln in urdf.link_map}
-
-    return set_values, movable, lambda: None
-
-
-@contextlib.contextmanager
-def _captured_native_output():
-    """Collect what C code writes to fds 1 and 2 (pybullet's b3Warning / b3Error lines) so it
-    goes into the report instead of the terminal. Held only around the load call."""
-    sys.stdout.flush()
-    sys.stderr.flush()
-    buf = tempfile.TemporaryFile(mode="w+b")
-    saved = [os.dup(1), os.dup(2)]
-    lines: list[str] = []
-    try:
-        os.dup2(buf.fileno(), 1)
-        os.dup2(buf.fileno(), 2)
-        yield lines
-    finally:
-        os.dup2(saved[0], 1)
-        os.dup2(saved[1], 2)
-        for fd in saved:
-            os.close(fd)
-        buf.seek(0)
-        text = buf.read().decode(errors="replace")
-        buf.close()
-        lines.extend(ln.strip() for ln in text.splitlines() if ln.strip())
-
-
-def _backend_pybullet(path: Path):
-    with _captured_native_output():
-        import pybullet as pb                    # prints its build time on first import
-    cid = pb.connect(pb.DIRECT)
-    try:
-        with _captured_native_output() as native:
-            body = pb.loadURDF(str(path), useFixedBase=True, physicsClientId=cid)
-    except Exception as e:
-        pb.disconnect(cid)
-        detail = " ".join(ln for ln in native if "rror" in ln or "cannot" in ln or "invalid" in ln)
-        raise RuntimeError(f"pybullet could not load the URDF: {e}"
-                           f"{' (' + detail[:300] + ')' if detail else ''}") from None
-    n = pb.getNumJoints(body, physicsClientId=cid)
-    index, movable, links = {}, {}, {}
-    for k in range(n):
-        info = pb.getJointInfo(body, k, physicsClientId=cid)
-        jname, jtype = info[1].decode(), info[2]
-        links[info[12].decode()] = k
-        if jtype in (pb.JOINT_REVOLUTE, pb.JOINT_PRISMATIC):
-            index[jname] = k
-            movable[jname] = (info[8], info[9])
-    base_name = pb.getBodyInfo(body, physicsClientId=cid)[0].decode()
-    # getBasePositionAndOrientation gives the base's inertial frame; undo its local offset.
-    dyn = pb.getDynamicsInfo(body, -1, physicsClientId=cid)
-    inv_local = np.linalg.inv(_pose(dyn[3], _quat_xyzw_to_matrix(dyn[4])))
-
-    def set_values(vals: dict) -> dict:
-        for jname, k in index.items():
-            pb.resetJointState(body, k, float(vals.get(jname, 0.0)), physicsClientId=cid)
-        for jname, v in vals.items():
-            got = pb.getJointState(body, index[jname], physicsClientId=cid)[0]
-            if abs(got - v) > 1e-9:
-                raise RuntimeError(f"pybullet joint {jname!r} did not take value {v} (has {got})")
-        pos, orn = pb.getBasePositionAndOrientation(body, physicsClientId=cid)
-        out = {base_name: _pose(pos, _quat_xyzw_to_matrix(orn)) @ inv_local}
-        states = pb.getLinkStates(body, list(links.values()), computeForwardKinematics=True,
-                                  physicsClientId=cid) if links else []
-        for lname, st in zip(links, states):
-            out[lname] = _pose(st[4], _quat_xyzw_to_matrix(st[5]))
-        return out
-
-    return set_values, movable, lambda: pb.disconnect(cid)
-
-
-def _backend_mujoco(path: Path):
-    import mujoco
-    m = mujoco.MjModel.from_xml_path(str(path))
-    d = mujoco.MjData(m)
-    movable, adr = {}, {}
-    for k in range(m.njnt):
-        jname = m.joint(k).name
-        if m.jnt_type[k] in (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_SLIDE):
-            adr[jname] = int(m.jnt_qposadr[k])
-            lim = m.jnt_range[k] if m.jnt_limited[k] else (-math.pi, math.pi)
-            movable[jname] = (float(lim[0]), float(lim[1]))
-    bodies = {m.body(b).name: b for b in range(1, m.nbody)}
-    deepest = [0.0]
-
-    def set_values(vals: dict) -> dict:
-        d.qpos[:] = 0.0
-        for jname, v in vals.items():
-            d.qpos[adr[jname]] = v
-        # Position stage incl. collision detection: poses, and how deep collision geometry of
-        # different bodies interpenetrates in this state (informational).
-        mujoco.mj_fwdPosition(m, d)
-        if d.ncon:
-            deepest[0] = max(deepest[0], float(-d.contact.dist[:d.ncon].min()))
-        return {name: _pose(d.xpos[b], d.xmat[b].reshape(3, 3)) for name, b in bodies.items()}
-
-    set_values.max_penetration = lambda: deepest[0]
-    return set_values, movable, lambda: None
-
-
-def _package_dirs() -> list[str]:
-    """Folders Pinocchio searches for ``package://<pkg>/...``: each ament prefix's share/."""
-    dirs = []
-    for prefix in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep):
-        share = Path(prefix) / "share"
-        if prefix and share.is_dir():
-            dirs.append(str(share))
-    return dirs
-
-
-def _backend_pinocchio(path: Path):
-    """Pinocchio's kinematic model (fixed base) plus its collision geometry model, which
-    loads every collision mesh (a missing one raises). Link poses are its BODY frames."""
-    import pinocchio as pin
-    model = pin.buildModelFromUrdf(str(path))
-    pin.buildGeomFromUrdf(model, str(path), pin.GeometryType.COLLISION,
-                          package_dirs=_package_dirs() + [str(path.parent)])
-    data = model.createData()
-    movable = {}
-    for jid in range(1, model.njoints):
-        j = model.joints[jid]
-        if j.nq == 1:
-            movable[model.names[jid]] = (float(model.lowerPositionLimit[j.idx_q]),
-                                         float(model.upperPositionLimit[j.idx_q]))
-        else:                        # continuous: (cos, sin) of the angle, no limits
-            movable[model.names[jid]] = (None, None)
-    frames = {f.name: k for k, f in enumerate(model.frames) if f.type == pin.FrameType.BODY}
-
-    def set_values(vals: dict) -> dict:
-        q = pin.neutral(model)
-        for jname, v in vals.items():
-            jid = model.getJointId(jname)
-            if jid >= model.njoints:
-                raise KeyError(f"pinocchio model has no joint {jname!r}")
-            j = model.joints[jid]
-            if j.nq == 1:
-                q[j.idx_q] = v
-            else:
-                q[j.idx_q:j.idx_q + 2] = (math.cos(v), math.sin(v))
-        pin.forwardKinematics(model, data, q)
-        pin.updateFramePlacements(model, data)
-        return {name: np.array(data.oMf[k].homogeneous) for name, k in frames.items()}
-
-    return set_values, movable, lambda: None
-
-
-_BACKENDS: dict[str, Callable] = {"yourdfpy": _backend_yourdfpy, "pybullet": _backend_pybullet,
-                                  "mujoco": _backend_mujoco, "pinocchio": _backend_pinocchio}
-
 
 def _has_package_uri(path: Path) -> bool:
     """pybullet only strips ``package://`` and searches beside the URDF; a package URI that
@@ -406,7 +192,7 @@ def _unreadable_visuals(path: Path, sim: str) -> list[str]:
     return bad
 
 
-def _resolved_copy(path: Path, tmpdir: str, sim: str, drop_visuals: bool) -> Path:
+def resolved_copy(path: Path, tmpdir: str, sim: str, drop_visuals: bool) -> Path:
     """A copy of a URDF for a simulator: absolute mesh paths, a MuJoCo compiler element
     (kept if present, with strippath off), and optionally no visuals (GLB visuals: the
     engines cannot read them and visuals do not change kinematics)."""
@@ -456,50 +242,15 @@ def check_urdf(path: os.PathLike, obj=None, *, simulators=SIMULATORS) -> SimRepo
             t0 = time.perf_counter()
             close = lambda: None  # noqa: E731
             try:
-                load_path = path
-                if sim in ("mujoco", "pybullet"):
-                    bad = _unreadable_visuals(path, sim)
-                    if bad:
-                        res.note = (f"{len(bad)} visual mesh(es) in a format {sim} cannot read "
-                                    f"(e.g. {Path(bad[0]).name}); checked without visuals")
-                    if bad or not _has_mujoco_element(path) or (
-                            sim == "pybullet" and _has_package_uri(path)):
-                        load_path = _resolved_copy(path, tmpdir, sim, drop_visuals=bool(bad))
-                elif sim == "pinocchio" and _has_package_uri(path):
-                    # package:// resolved as for the others (ament index, then beside the URDF)
-                    load_path = _resolved_copy(path, tmpdir, sim, drop_visuals=False)
-                set_values, sim_movable, close = _BACKENDS[sim](load_path)
+                set_values, sim_movable, close = BACKENDS[sim](_load_path(path, sim, tmpdir, res))
                 res.loaded = True
                 res.num_joints = len(sim_movable)
-                missing = sorted(set(moving) - set(sim_movable))
-                if missing:
-                    raise RuntimeError(f"joints not movable in {sim}: {missing}")
-                for jn, j in moving.items():
-                    lo, hi = sim_movable[jn]
-                    if j.type != "continuous" and lo is not None and (
-                            abs(lo - j.lower) > 1e-6 or abs(hi - j.upper) > 1e-6):
-                        raise RuntimeError(f"{sim} limits of joint {jn!r} are ({lo}, {hi}), "
-                                           f"URDF says ({j.lower}, {j.upper})")
-                for jn, j in moving.items():  # each joint must move its child link
-                    if j.upper - j.lower <= 1e-9:
-                        continue
-                    # Several points of the range: a revolute over whole turns (a screw cap)
-                    # is back at its rest pose at its upper limit.
-                    moved = False
-                    for f in (1.0, 0.5, 0.3, 0.1):
-                        v = j.lower + f * (j.upper - j.lower)
-                        posed = set_values({jn: v})
-                        if np.abs(posed[j.child] - set_values({jn: j.lower})[j.child]).max() > MOVE_TOL:
-                            moved = True
-                            break
-                    if not moved:
-                        raise RuntimeError(f"joint {jn!r} does not move link {j.child!r} in {sim}")
+                _check_joints(sim, moving, sim_movable, set_values)
                 res.joints_movable = True
                 if obj is not None:
                     dp = dr = 0.0
                     for vals, want in cases:
-                        got = set_values(vals)
-                        p, r = _pose_errors(got, want)
+                        p, r = _pose_errors(set_values(vals), want)
                         dp, dr = max(dp, p), max(dr, r)
                     res.max_position_error, res.max_rotation_error = dp, dr
                 probe = getattr(set_values, "max_penetration", None)
@@ -515,3 +266,42 @@ def check_urdf(path: os.PathLike, obj=None, *, simulators=SIMULATORS) -> SimRepo
                     pass
                 res.seconds = time.perf_counter() - t0
     return report
+
+
+def _load_path(path: Path, sim: str, tmpdir: str, res: SimResult) -> Path:
+    """The file ``sim`` loads: the URDF itself, or a copy with package:// resolved, MuJoCo's
+    compiler element added, or visuals it cannot read left out (noted in ``res``)."""
+    if sim in ("mujoco", "pybullet"):
+        bad = _unreadable_visuals(path, sim)
+        if bad:
+            res.note = (f"{len(bad)} visual mesh(es) in a format {sim} cannot read "
+                        f"(e.g. {Path(bad[0]).name}); checked without visuals")
+        if bad or not _has_mujoco_element(path) or (sim == "pybullet" and _has_package_uri(path)):
+            return resolved_copy(path, tmpdir, sim, drop_visuals=bool(bad))
+    elif sim == "pinocchio" and _has_package_uri(path):
+        # package:// resolved as for the others (ament index, then beside the URDF)
+        return resolved_copy(path, tmpdir, sim, drop_visuals=False)
+    return path
+
+
+def _check_joints(sim: str, moving: dict, sim_movable: dict, set_values) -> None:
+    """Every URDF moving joint is movable in ``sim`` with the URDF's limits and moves its
+    child link; raises RuntimeError saying which is not."""
+    missing = sorted(set(moving) - set(sim_movable))
+    if missing:
+        raise RuntimeError(f"joints not movable in {sim}: {missing}")
+    for jn, j in moving.items():
+        lo, hi = sim_movable[jn]
+        if j.type != "continuous" and lo is not None and (
+                abs(lo - j.lower) > 1e-6 or abs(hi - j.upper) > 1e-6):
+            raise RuntimeError(f"{sim} limits of joint {jn!r} are ({lo}, {hi}), "
+                               f"URDF says ({j.lower}, {j.upper})")
+    for jn, j in moving.items():
+        if j.upper - j.lower <= 1e-9:
+            continue
+        # Several points of the range: a revolute over whole turns (a screw cap) is back at
+        # its rest pose at its upper limit.
+        rest = set_values({jn: j.lower})[j.child]
+        if not any(np.abs(set_values({jn: j.lower + f * (j.upper - j.lower)})[j.child] - rest).max()
+                   > MOVE_TOL for f in (1.0, 0.5, 0.3, 0.1)):
+            raise RuntimeError(f"joint {jn!r} does not move link {j.child!r} in {sim}")

@@ -231,7 +231,7 @@ def _geom(el, path: Path, materials: dict, where: str, lenient: bool) -> Optiona
     return None
 
 
-def _link(el, path: Path, materials: dict, lenient: bool) -> Link:
+def _link(el, path: Path, materials: dict, lenient: bool, geometry: bool = True) -> Link:
     name = el.get("name")
     link = Link(name)
     inert = el.find("inertial")
@@ -246,7 +246,7 @@ def _link(el, path: Path, materials: dict, lenient: bool) -> Link:
                                      [g["ixy"], g["iyy"], g["iyz"]],
                                      [g["ixz"], g["iyz"], g["izz"]]])
     for role, out in (("visual", link.visuals), ("collision", link.collisions)):
-        for k, v in enumerate(el.findall(role)):
+        for k, v in enumerate(el.findall(role) if geometry else ()):
             geom = _geom(v, path, materials, f"link {name} {role} {k}", lenient)
             if geom is not None:
                 out.append(geom)
@@ -331,8 +331,10 @@ def _parse(path: Path, lenient: bool):
     return root
 
 
-def read_urdf(path: os.PathLike, *, lenient: bool = False) -> URDFModel:
-    """Parse a URDF file; raises ConvertError naming what is wrong.
+def read_urdf(path: os.PathLike, *, lenient: bool = False, geometry: bool = True) -> URDFModel:
+    """Parse a URDF file; raises ConvertError naming what is wrong. ``geometry=False``
+    reads the tree, joints and inertials only (visuals and collisions are not read, so mesh
+    files need not exist).
 
     ``lenient`` (datasets such as PartNet-Mobility): broken XML is recovered where possible,
     a missing mesh file or a joint without parent / child is skipped with a warning, joint
@@ -352,7 +354,7 @@ def read_urdf(path: os.PathLike, *, lenient: bool = False) -> URDFModel:
         name = el.get("name")
         if not name or name in links:
             raise ConvertError(f"{path}: a link has no name or a duplicate link name ({name!r})")
-        links[name] = _link(el, path, materials, lenient)
+        links[name] = _link(el, path, materials, lenient, geometry)
     if not links:
         raise ConvertError(f"{path}: the URDF has no links")
     joints, parent_joint = [], {}

@@ -98,14 +98,14 @@ class PhysicsResult:
 def _spec(urdf: Path, tmpdir: str, free: bool, cfg: PhysicsConfig):
     import mujoco
 
-    from model.export.simcheck import _resolved_copy
+    from model.export.simcheck import resolved_copy
 
     if urdf.suffix.lower() == ".xml":          # an MJCF model (artformer convert --to mjcf)
         spec = mujoco.MjSpec.from_file(str(urdf))
         for a in list(spec.actuators):           # our own servos replace its actuators
             spec.delete(a)
     else:
-        spec = mujoco.MjSpec.from_file(str(_resolved_copy(urdf, tmpdir, "mujoco",
+        spec = mujoco.MjSpec.from_file(str(resolved_copy(urdf, tmpdir, "mujoco",
                                                           drop_visuals=True)))
     spec.option.timestep = cfg.timestep
     spec.option.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
