@@ -169,6 +169,9 @@ def _bench(argv: list[str]) -> int:
     p.add_argument("--threads", type=int, default=2, help="torch threads for meshing (2)")
     p.add_argument("--ddim-threads", type=int, default=1,
                    help="torch threads for DDIM (1, as the pipeline: model.core.runtime)")
+    p.add_argument("--min-island", type=int, default=None,
+                   help="meshing: sign islands removed up to this many grid vertices "
+                        "(default: model.geometry.meshing.MIN_ISLAND; 0 keeps them)")
     p.add_argument("--default-heap", action="store_true",
                    help="leave glibc's allocator thresholds alone (the pipeline keeps the "
                         "heap mapped: model.core.runtime.keep_heap_mapped)")
@@ -179,8 +182,11 @@ def _bench(argv: list[str]) -> int:
     heap = False if a.default_heap else keep_heap_mapped()
     from .evaluate import benchmark
     shape = _load_shape(a, need_prior=True)
+    if a.min_island is not None and a.min_island < 0:
+        raise ValueError("--min-island must be >= 0")
     res = benchmark(shape, resolution=a.resolution, parts=a.parts, steps=a.steps,
-                    repeats=a.repeats, ddim_threads=a.ddim_threads)
+                    repeats=a.repeats, ddim_threads=a.ddim_threads,
+                    mesh_kw=None if a.min_island is None else {"min_island": a.min_island})
     res["heap_kept_mapped"] = heap
     for k, v in res.items():
         print(f"{k:<36} {v:.1f}" if isinstance(v, float) else f"{k:<36} {v}")

@@ -489,7 +489,7 @@ def _json_rows(rows: list[dict]) -> list[dict]:
 # -- benchmark ---------------------------------------------------------------------------------
 
 def benchmark(shape, *, resolution: int = 64, parts: int = 8, steps: int = 50, repeats: int = 5,
-              seed: int = 0, ddim_threads: int = 1) -> dict:
+              seed: int = 0, ddim_threads: int = 1, mesh_kw: Optional[dict] = None) -> dict:
     """Median wall times (ms): each of ``parts`` parts meshed alone (median and max over the
     parts); all of them meshed in one call (per part); 50-step DDIM over all of them.
 
@@ -512,10 +512,11 @@ def benchmark(shape, *, resolution: int = 64, parts: int = 8, steps: int = 50, r
         return statistics.median(ts)
     out = {"resolution": resolution, "threads": torch.get_num_threads()}
     # each part meshed alone (parts differ 3x in surface area, so one part is no measure)
-    alone = [timed(lambda i=i: shape.decode(z[i:i + 1], resolution)) for i in range(parts)]
+    kw = mesh_kw or {}
+    alone = [timed(lambda i=i: shape.decode(z[i:i + 1], resolution, **kw)) for i in range(parts)]
     out["mesh_one_part_ms"] = statistics.median(alone)
     out["mesh_one_part_max_ms"] = max(alone)
-    out[f"mesh_{parts}_parts_ms_per_part"] = timed(lambda: shape.decode(z, resolution)) / parts
+    out[f"mesh_{parts}_parts_ms_per_part"] = timed(lambda: shape.decode(z, resolution, **kw)) / parts
     if shape.prior is not None:
         P = shape.code_distribution(z).clamp_min(1e-8).log()
         cs = torch.randn(parts, shape.prior.cfg.cs_dim, generator=gen)
