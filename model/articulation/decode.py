@@ -192,7 +192,7 @@ class ArticulationModel:
         self.net = net.eval()
         self.cfg = net.cfg
         self.meta = {k: ckpt.get(k) for k in ("data_version", "seed", "command", "step",
-                                              "text_encoder", "ablation", "targets")}
+                                              "text_encoder", "ablation", "targets", "prior")}
         st = ckpt["stats"]
         self.tok_mean = torch.as_tensor(st["tok_mean"], dtype=torch.float32)   # (16,)
         self.tok_std = torch.as_tensor(st["tok_std"], dtype=torch.float32)     # (16,)
@@ -210,8 +210,11 @@ class ArticulationModel:
         self.text_max_length: int = int(ckpt.get("train_config", {}).get("max_text_tokens", 128))
 
     @classmethod
-    def load(cls, path: Union[str, os.PathLike]) -> "ArticulationModel":
-        ckpt = read_checkpoint(path)
+    def load(cls, path: Union[str, os.PathLike], prior: Optional[str] = None
+             ) -> "ArticulationModel":
+        """``prior``: the fingerprint of the shape prior it will run with; a checkpoint
+        trained against another is refused (model.core.checkpoint.check_prior)."""
+        ckpt = read_checkpoint(path, prior=prior)
         return cls(build_network(ckpt), ckpt)
 
     # -- conditions ---------------------------------------------------------------------------

@@ -60,7 +60,9 @@ class ShapeModel:
                 log.warning("prior %s was trained on an auto-encoder with a different config "
                             "than %s", prior_path, sdf_path)
             bank = pr_ck.get("extra", {}).get("bank")
-            info.update(prior=str(prior_path), prior_data_version=pr_ck["data_version"])
+            from model.core.checkpoint import prior_fingerprint
+            info.update(prior=str(prior_path), prior_data_version=pr_ck["data_version"],
+                        fingerprint=prior_fingerprint(ae_ck, pr_ck))
         return cls(ae, pr, bank, info)
 
     def _need_prior(self):
