@@ -163,3 +163,27 @@ def test_wall_thickness_of_a_plate():
     _, _, t = ev.wall_thickness(plate, 400, 0, step=0.005, steps=80)
     # most samples are on the two big faces: thickness 0.1 along the normal
     assert np.median(t) == pytest.approx(0.1, abs=0.006)
+
+
+def test_diagnose_runs_on_an_untrained_model(prim):
+    """The cause analysis end to end (tiny untrained auto-encoder: every number must be a
+    well-formed share, whatever the shapes look like)."""
+    from model.geometry.api import ShapeModel
+    from model.geometry.autoencoder import SDFAutoEncoder
+    from model.geometry.config import get_preset
+    root, parts = prim
+    torch.manual_seed(0)
+    shape = ShapeModel(SDFAutoEncoder(get_preset("tiny").sdf))
+    out = ev.diagnose(shape, str(root), per_label_cap=1, max_parts=2, resolutions=(16, 32),
+                      progress=False)
+    assert out["parts"] == 2 and set(out["a_ae_resolution"]) == {"16", "32"}
+    assert set(out["a_true_sdf_box"]) == {"32", "64", "128"}
+    for r in out["a_true_sdf_box"].values():          # the exact SDF keeps the primitives whole
+        assert r["fscore"] > 0.9 and r["true_components"] == 1.0
+    for b in out["b_wall_midpoints_outside"]:
+        assert b["decoded_outside"] is None or 0.0 <= b["decoded_outside"] <= 1.0
+    assert sum(b["points"] for b in out["b_wall_midpoints_outside"]) == 2 * 512
+    thick = out["c_wall_thickness_cells"]
+    assert thick["box"]["median"] >= thick["iso"]["median"]   # the box frame never thins walls
+    assert "d_retrieval_64" not in out                        # no bank: no retrieval row
+    assert out["e_remedies_64"]["largest_component_only"]["n"] == 2

@@ -603,7 +603,11 @@ def diagnose(shape, data: str, *, split: str = "test", per_label_cap: int = 6,
     d) prior vs auto-encoder: retrieval decodes (training latents) of the same label texts;
     e) meshing-time remedies on the same latents: iso-level offsets (dilation), keeping the
        largest component.
+
+    Everything is meshed with ``min_island=0`` (no island removal), so every fragment the
+    network makes is counted.
     """
+    raw = {"min_island": 0}
     from .data import load_parts
     from .meshing import keep_largest_components, mesh_sdf_batch
     parts = load_parts(data, split, with_sdf=False)
@@ -628,7 +632,7 @@ def diagnose(shape, data: str, *, split: str = "test", per_label_cap: int = 6,
     out["a_ae_resolution"] = {}
     for r in resolutions:
         rows = reconstruct(shape, parts, idx, resolution=r, seed=seed, truth=truth, z=z,
-                           progress=progress, iou=False)
+                           progress=progress, iou=False, mesh_kw=raw)
         res_rows[r] = rows
         out["a_ae_resolution"][str(r)] = brief(rows)
     # a) + c) the true SDF meshed in the box / iso frame
@@ -647,7 +651,7 @@ def diagnose(shape, data: str, *, split: str = "test", per_label_cap: int = 6,
             fm, back = _to_frame(tp, parts, i, frame)
             fn = _igl_sdf(fm)
             for r in ((32, 64, 128) if frame == "box" else (64,)):
-                mr = mesh_sdf_batch(fn, 1, r)[0]
+                mr = mesh_sdf_batch(fn, 1, r, **raw)[0]
                 m = mr.mesh.copy()
                 if mr.ok:
                     m.vertices = back(m.vertices)
@@ -717,7 +721,7 @@ def diagnose(shape, data: str, *, split: str = "test", per_label_cap: int = 6,
                 continue
             sel = (shape.bank["text_ids"] == shape.bank["texts"].index(tx)).nonzero()[:, 0]
             pick = sel[torch.randperm(len(sel), generator=gen)[:per_label_cap]]
-            for r in shape.decode(lat[pick].float(), 64):
+            for r in shape.decode(lat[pick].float(), 64, **raw):
                 if not r.ok:
                     continue
                 from .meshing import components
@@ -735,10 +739,10 @@ def diagnose(shape, data: str, *, split: str = "test", per_label_cap: int = 6,
     rem = {}
     for lv in (0.5, 1.0):
         rows = reconstruct(shape, parts, idx, resolution=64, seed=seed, truth=truth, z=z,
-                           mesh_kw={"level": lv * h64}, iou=False)
+                           mesh_kw={"level": lv * h64, **raw}, iou=False)
         rem[f"level_+{lv}_cell"] = brief(rows)
     base = res_rows.get(64) or reconstruct(shape, parts, idx, resolution=64, seed=seed,
-                                           truth=truth, z=z)
+                                           truth=truth, z=z, iou=False, mesh_kw=raw)
     kept = []
     for r in base:
         if r.get("empty"):
