@@ -25,7 +25,7 @@ import torch
 from torch.nn import functional as F
 
 from model.core.objects import TOKEN_DIM, ArticulatedObject, JointType
-from model.pipeline.api import hinge_side
+from model.core.structure import hinge_side
 
 from .checkpoint import build_network, read_checkpoint
 from .network import ArticulationTransformer, TreeBatch
@@ -253,7 +253,7 @@ class ArticulationModel:
         Labels the structure does not name are not produced, except ``handle`` (attached to
         doors / drawers / lids), whose count the model decides unless the structure names it.
         """
-        from model.pipeline.api import GenerationError, parse_structure
+        from model.core.structure import GenerationError, parse_structure
         try:
             spec = parse_structure(spec)
         except GenerationError as e:

@@ -161,7 +161,7 @@ def structure_mismatch(obj: ArticulatedObject, structure) -> str | None:
     them). ``structure`` is a dict / JSON text / ``model.pipeline.api.StructureSpec``; the
     rules are those of structure control (docs/articulation.md): named labels with exact
     counts, joint types and hinge sides; unnamed labels absent except handles."""
-    from model.pipeline.api import hinge_side, parse_structure
+    from model.core.structure import hinge_side, parse_structure
 
     spec = parse_structure(structure)
     if spec.category and spec.category.lower() != obj.category.lower():

@@ -322,7 +322,7 @@ def write_preview(obj, path, *, ratios: Sequence[float] = (0.0, 0.5, 1.0), size:
 
     from PIL import Image
 
-    from model.data.format import atomic_write_bytes
+    from model.core.files import atomic_write_bytes
     views = render_views(obj, ratios, size, options=options, simplify=True,
                          interrupt=interrupt)                       # (V, S, S, 3)
     if views is None:

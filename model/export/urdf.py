@@ -25,7 +25,9 @@ import os
 import shutil
 import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Optional
 
 import numpy as np
 
@@ -36,6 +38,15 @@ from .collision import (CollisionConfig, collision_pieces, is_box,  # noqa: F401
                         is_solid_enough)
 
 
+
+
+@dataclass
+class ExportResult:
+    out_dir: str
+    urdf_path: str
+    mesh_paths: dict[str, str]          # link name -> mesh file
+    metadata_path: str
+    preview_path: Optional[str] = None
 
 def object_slug(text: str) -> str:
     """The file and robot name of an object: letters, digits, '_' and '-'."""
@@ -171,8 +182,6 @@ def export_object(obj: ArticulatedObject, out_dir: os.PathLike, *, mesh_format: 
     atomically: it is built beside ``out_dir`` and renamed into place (an existing folder is
     replaced).
     """
-    from model.pipeline.api import ExportResult
-
     t0 = time.perf_counter()
     mesh_format = mesh_format.lower().lstrip(".")
     if mesh_format not in MESH_FORMATS:

@@ -37,6 +37,7 @@ from typing import Iterable, Optional, Sequence
 import numpy as np
 
 from model.core import ArticulatedObject, JointType, meshops
+from model.core.contacts import checked_pairs, pair_overlaps  # noqa: F401  (re-exported)
 
 log = logging.getLogger(__name__)
 
@@ -91,19 +92,6 @@ class ObjectAudit:
 # ---------------------------------------------------------------------------------------------
 # interpenetration and attachment
 # ---------------------------------------------------------------------------------------------
-def checked_pairs(obj: ArticulatedObject) -> list[tuple[int, int]]:
-    """Every pair of parts except a parent and child fixed rigidly together."""
-    pairs = []
-    for i in range(len(obj.parts)):
-        for j in range(i + 1, len(obj.parts)):
-            a, b = obj.parts[i], obj.parts[j]
-            rigid = ((a.parent == j and a.joint.type == JointType.FIXED)
-                     or (b.parent == i and b.joint.type == JointType.FIXED))
-            if not rigid:
-                pairs.append((i, j))
-    return pairs
-
-
 def _closed_panel(obj: ArticulatedObject, i: int) -> bool:
     """Part ``i`` is a door or lid, or rides on one (its handle)."""
     while i >= 0:
@@ -148,20 +136,6 @@ def _manifolds(obj: ArticulatedObject) -> tuple[dict, list[str]]:
             mans[i] = meshops.to_manifold(p.mesh, fallback="hull")
             hulls.append(p.name)
     return mans, hulls
-
-
-def pair_overlaps(obj: ArticulatedObject, mans: dict, vol: dict, pairs, T: dict):
-    """(i, j, intersection / smaller volume) of each pair of parts posed by ``T`` (link
-    transforms), skipping pairs whose bounding boxes are apart."""
-    posed: dict[int, object] = {}
-    for i, j in pairs:
-        for k in (i, j):
-            if k not in posed:
-                posed[k] = mans[k].transform(meshops.affine34(T[obj.parts[k].name]))
-        ba, bb = posed[i].bounding_box(), posed[j].bounding_box()
-        if any(ba[d] >= bb[d + 3] or bb[d] >= ba[d + 3] for d in range(3)):
-            continue
-        yield i, j, max(0.0, float((posed[i] ^ posed[j]).volume())) / min(vol[i], vol[j])
 
 
 def overlaps(obj: ArticulatedObject, states: int = 10, mans: Optional[dict] = None

@@ -155,7 +155,7 @@ def shrink_limits(obj: ArticulatedObject, mans: dict, max_overlap: float = 0.01,
     """Each joint alone: where its sweep collides (intersection over the smaller volume
     above ``max_overlap``) or dips under the floor the object stands on, the range ends at
     the last free state."""
-    from model.metrics.audit import checked_pairs
+    from model.core.contacts import checked_pairs
 
     vol = {i: max(float(m.volume()), 1e-15) for i, m in mans.items()}
     pairs = [(i, j) for i, j in checked_pairs(obj) if i in mans and j in mans]
@@ -191,7 +191,7 @@ def _below_ground(obj, mans, sub, T, ground: float) -> bool:
 
 
 def _collides(obj, mans, vol, pairs, T, max_overlap) -> bool:
-    from model.metrics.audit import pair_overlaps
+    from model.core.contacts import pair_overlaps
     return any(r > max_overlap for _, _, r in pair_overlaps(obj, mans, vol, pairs, T))
 
 
