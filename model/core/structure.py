@@ -1,4 +1,4 @@
-"""Explicit structure of a request (docs/articulation.md "Structure control"): which part
+"""Explicit structure of a request (docs/structure.md): which part
 labels, how many, which joint types and hinge sides; parsed and checked before decoding.
 The layer every other one may use (the decoder, the example backend, the pipeline)."""
 from __future__ import annotations
@@ -11,7 +11,7 @@ class GenerationError(RuntimeError):
     """A request could not produce a valid object; the message says why."""
 
 
-# -- explicit structure (docs/articulation.md "Structure control") ------------------------------
+# -- explicit structure (docs/structure.md) ------------------------------
 HINGE_SIDES = ("left", "right", "top", "bottom")   # the hinge edge as seen from the front:
                                                    # "left" = the viewer's left (object -y)
 AUTO = "auto"

@@ -20,7 +20,7 @@ For one object (in memory or a URDF folder, ours or anyone's) it measures
 * **physics** — MuJoCo on a floor with every joint driven (``model.metrics.physics``).
 
 Each object gets a **sim-ready** verdict: every check within the thresholds of
-:class:`AuditConfig` (documented in docs/metrics.md).
+:class:`AuditConfig` (documented in docs/audit.md).
 
     rep = audit_object(obj)                 # ObjectAudit; rep.sim_ready, rep.failures
     reps = audit_paths(["out/"])           # every URDF folder under out/

@@ -30,13 +30,13 @@ class GenerationConfig:
                                        # counts from their heads' distributions at that
                                        # temperature (decode.py). Off: on the test split it
                                        # lowers alignment (0.815 -> 0.805) and barely varies
-                                       # the layouts (docs/metrics.md, "Diversity")
+                                       # the layouts (docs/structure.md, "Diversity")
     layout_sampling: str = "structure" # never | structure | always: the seed picks dropout
                                        # masks for the parts' boxes and joints (Monte-Carlo
                                        # dropout, decode.py), so seeds give different layouts
                                        # of one structure; "structure" = only when a structure
                                        # is forced (free text: it lowers alignment 0.815 ->
-                                       # 0.79; docs/metrics.md, "Diversity")
+                                       # 0.79; docs/structure.md, "Diversity")
     follow_plan: tuple = ("text",)     # modalities whose END decisions are held to a plan:
                                        # text to the START plan head (decode.py), an image to
                                        # its model's count head if it has one (counts.py).
