@@ -75,7 +75,7 @@ def _eval_parser() -> argparse.ArgumentParser:
 
 def _default_data() -> str | None:
     """The newest prepared dataset under ./data/prepared or the repository's data/prepared
-    (where `artformer data prepare` writes by default)."""
+    (where `artformer data prepare` writes by default), when none matches the model's."""
     roots = [Path.cwd() / "data" / "prepared",
              Path(__file__).resolve().parents[2] / "data" / "prepared"]
     found = [m.parent for r in roots if r.is_dir() for m in r.glob("*/manifest.json")]
@@ -85,6 +85,20 @@ def _default_data() -> str | None:
     return str(max(found, key=lambda p: (p / "manifest.json").stat().st_mtime))
 
 
+def _model_data(checkpoint: str) -> str | None:
+    """The prepared dataset the evaluated transformer was trained on (its data_version), if
+    it is on this machine: its held-out splits are the ones to score."""
+    from model.articulation.checkpoint import read_checkpoint
+    from model.pipeline.generator import find_checkpoints
+
+    from .diversity import _matching_data
+    try:
+        paths = find_checkpoints(None if checkpoint == "shipped" else checkpoint)
+        return _matching_data(read_checkpoint(paths["transformer"]).get("data_version"))
+    except Exception:  # noqa: BLE001 - a bad checkpoint is reported when it is loaded
+        return None
+
+
 def eval_main(argv: list[str]) -> int:
     args = _eval_parser().parse_args(argv)
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING,
@@ -92,7 +106,7 @@ def eval_main(argv: list[str]) -> int:
     if args.freeform_only:
         return _freeform_main(args)
     from .evaluate import EvalConfig, freeform_table, run_eval
-    data = args.data or _default_data()
+    data = args.data or _model_data(args.checkpoint) or _default_data()
     if not data:
         print("artformer eval: give --data DIR (a prepared dataset, `artformer data prepare`)",
               file=sys.stderr)
