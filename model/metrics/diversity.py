@@ -35,22 +35,11 @@ from typing import Optional, Sequence
 
 import numpy as np
 
+from .audit_eval import EVERYDAY
+
 log = logging.getLogger(__name__)
 
-PROMPTS = ("a cabinet with two drawers",) + (
-    "a kitchen cabinet with three drawers and a door on the left",
-    "a chest of four drawers",
-    "a wardrobe with two doors",
-    "a safe with a keypad and a door",
-    "an oven with four knobs and a door",
-    "a front-loading washing machine with a dial",
-    "a bottle with a screw cap",
-    "a usb stick with a cap",
-    "a storage cabinet with two drawers and a door",
-    "a nightstand with one drawer",
-    "a microwave-sized safe with a turning knob",
-    "a top-loading washing machine with a lid",
-)   # "a cabinet with two drawers" and the audit's 12 everyday prompts (audit_eval.EVERYDAY)
+PROMPTS = ("a cabinet with two drawers",) + EVERYDAY   # and the audit's 12 everyday prompts
 # the structure each built-in prompt states, for --forced (decoding within an asked structure)
 FORCED = {
     "a cabinet with two drawers": {"drawer": 2},
