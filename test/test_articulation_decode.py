@@ -14,7 +14,7 @@ from model.articulation.network import ArticulationTransformer
 from model.core.objects import ArticulatedObject, JointType
 from model.data import format as fmt
 
-from test_articulation_common import write_toy_dataset
+from helpers import write_toy_dataset
 
 torch.set_num_threads(1)
 

@@ -1,5 +1,6 @@
 """MJCF conversion: Menagerie layout, loads in MuJoCo with every URDF joint, body poses match
 the URDF's kinematics (yourdfpy), each actuator drives its joint across its range."""
+import shutil
 import subprocess
 import sys
 import warnings
@@ -18,12 +19,11 @@ from model.export.urdfmodel import ConvertError, read_urdf_folder  # noqa: E402
 
 
 @pytest.fixture(scope="module")
-def examples(tmp_path_factory):
+def examples(tmp_path_factory, exported_examples):
     root = tmp_path_factory.mktemp("mjcf")
-    objs = example_objects()
     out = {}
-    for name in ("cabinet", "bottle"):
-        export_object(objs[name], root / name, preview=False)
+    for name, (_, res) in exported_examples.items():
+        shutil.copytree(res.out_dir, root / name)
         out[name] = (root / name, export_mjcf(root / name))
     return out
 
@@ -184,10 +184,8 @@ def test_cli(examples, tmp_path):
     assert out.returncode == 1 and "does not exist" in out.stderr
 
 
-def test_continuous_joint_and_primitives(tmp_path):
-    from test_export_usd import WHEEL_URDF  # noqa: E402  (same hand-written URDF)
-    (tmp_path / "cart.urdf").write_text(WHEEL_URDF)
-    res = export_mjcf(tmp_path)
+def test_continuous_joint_and_primitives(wheel_urdf_dir):
+    res = export_mjcf(wheel_urdf_dir)
     m = mujoco.MjModel.from_xml_path(res.scene_xml)
     j = m.joint("wheel_joint")
     assert j.type[0] == mujoco.mjtJoint.mjJNT_HINGE and not m.jnt_limited[j.id]

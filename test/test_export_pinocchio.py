@@ -10,10 +10,8 @@ from model.metrics.validity import validity  # noqa: E402
 
 
 @pytest.fixture(scope="module")
-def cabinet(tmp_path_factory):
-    obj = example_objects()["cabinet"]
-    res = export_object(obj, tmp_path_factory.mktemp("pin") / "cabinet", preview=False)
-    return obj, res
+def cabinet(exported_examples):
+    return exported_examples["cabinet"]        # (object, ExportResult), read-only
 
 
 def test_pinocchio_loads_moves_and_matches_our_fk(cabinet):
@@ -32,10 +30,8 @@ def test_pinocchio_sees_a_wrong_range(cabinet):
     assert not r.ok and r.max_position_error == pytest.approx(0.05, abs=1e-6)
 
 
-def test_pinocchio_continuous_joint(tmp_path):
-    from test_export_usd import WHEEL_URDF
-    (tmp_path / "cart.urdf").write_text(WHEEL_URDF)
-    r = check_urdf(tmp_path / "cart.urdf", simulators=("pinocchio",)).sims["pinocchio"]
+def test_pinocchio_continuous_joint(wheel_urdf_dir):
+    r = check_urdf(wheel_urdf_dir / "cart.urdf", simulators=("pinocchio",)).sims["pinocchio"]
     assert r.loaded and r.joints_movable and r.num_joints == 1, r
 
 

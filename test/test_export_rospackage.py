@@ -28,12 +28,11 @@ def _colcon() -> str:
 
 
 @pytest.fixture(scope="module")
-def built(tmp_path_factory):
+def built(tmp_path_factory, exported_examples):
     tmp = tmp_path_factory.mktemp("rospkg")
-    objs = example_objects()
     pkgs = {}
-    for name in ("cabinet", "bottle"):
-        export_object(objs[name], tmp / "objects" / name, preview=False)
+    for name, (_, res) in exported_examples.items():
+        shutil.copytree(res.out_dir, tmp / "objects" / name)
         pkgs[name] = export_ros_package(tmp / "objects" / name, tmp / "ws" / "src" / f"{name}_description",
                                         name=name)
     env = {**os.environ, "AMENT_PREFIX_PATH": str(REPO / ".venv"),

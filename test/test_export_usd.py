@@ -1,6 +1,7 @@
 """USD conversion: pxr opens the stage; joints, limits, bodies, masses, collision and link
 poses match the URDF (read independently with yourdfpy)."""
 import math
+import shutil
 import subprocess
 import sys
 import warnings
@@ -12,19 +13,16 @@ import pytest
 pxr = pytest.importorskip("pxr")
 from pxr import Usd, UsdGeom, UsdPhysics  # noqa: E402
 
-from model.core.example import example_objects  # noqa: E402
-from model.export.urdf import export_object  # noqa: E402
 from model.export.urdfmodel import ConvertError  # noqa: E402
 from model.export.usd import check_usd, export_usd  # noqa: E402
 
 
 @pytest.fixture(scope="module")
-def examples(tmp_path_factory):
+def examples(tmp_path_factory, exported_examples):
     root = tmp_path_factory.mktemp("usd")
-    objs = example_objects()
     out = {}
-    for name in ("cabinet", "bottle"):
-        export_object(objs[name], root / name, preview=False)
+    for name, (_, res) in exported_examples.items():
+        shutil.copytree(res.out_dir, root / name)
         out[name] = (root / name, export_usd(root / name))
     return out
 
@@ -130,33 +128,10 @@ def test_cli(examples, tmp_path):
     assert "check:     ok" in out.stdout and (tmp_path / "b.usd").is_file()
 
 
-WHEEL_URDF = """<robot name="cart">
-  <link name="base">
-    <inertial><mass value="2"/><inertia ixx="0.1" iyy="0.1" izz="0.1" ixy="0" ixz="0" iyz="0"/></inertial>
-    <visual><geometry><box size="0.4 0.2 0.1"/></geometry>
-      <material name="grey"><color rgba="0.5 0.5 0.5 1"/></material></visual>
-    <collision><geometry><box size="0.4 0.2 0.1"/></geometry></collision>
-  </link>
-  <link name="wheel">
-    <inertial><origin xyz="0 0 0" rpy="0.3 0 0"/><mass value="0.5"/>
-      <inertia ixx="0.01" iyy="0.02" izz="0.01" ixy="0" ixz="0" iyz="0"/></inertial>
-    <visual><origin rpy="1.5707963 0 0"/><geometry><cylinder radius="0.05" length="0.02"/></geometry></visual>
-    <collision><origin rpy="1.5707963 0 0"/><geometry><cylinder radius="0.05" length="0.02"/></geometry></collision>
-  </link>
-  <joint name="wheel_joint" type="continuous">
-    <parent link="base"/><child link="wheel"/>
-    <origin xyz="0.2 0.12 -0.05" rpy="0 0 0.4"/><axis xyz="0 1 0"/>
-    <limit effort="5" velocity="10"/>
-  </joint>
-</robot>
-"""
-
-
-def test_continuous_joint_and_primitives(tmp_path):
-    (tmp_path / "cart.urdf").write_text(WHEEL_URDF)
-    res = export_usd(tmp_path)
+def test_continuous_joint_and_primitives(wheel_urdf_dir):
+    res = export_usd(wheel_urdf_dir)
     assert res.joints == ["wheel_joint"]
-    assert check_usd(res.path, tmp_path) == []
+    assert check_usd(res.path, wheel_urdf_dir) == []
     stage = Usd.Stage.Open(res.path)
     wheel = stage.GetDefaultPrim().GetChild("wheel")
     assert any(p.IsA(UsdGeom.Cylinder) for p in Usd.PrimRange(wheel))

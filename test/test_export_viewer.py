@@ -27,7 +27,6 @@ from PIL import Image  # noqa: E402
 
 from model.core.example import example_objects  # noqa: E402
 from model.export.urdf import export_object  # noqa: E402
-from pipeline_common import make_trained_tiny  # noqa: E402
 
 ARGS = ["--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--no-sandbox",
         "--host-resolver-rules=MAP * ~NOTFOUND , EXCLUDE 127.0.0.1"]
@@ -139,14 +138,9 @@ def test_view_of_a_missing_folder_is_an_error(tmp_path):
     assert out.returncode == 1 and "does not exist" in out.stderr
 
 
-@pytest.fixture(scope="module")
-def tiny(tmp_path_factory):
-    return make_trained_tiny(tmp_path_factory.mktemp("studio"))
-
-
 @pytest.mark.slow
-def test_studio_errors_then_generates_and_downloads(browser, tiny, tmp_path):
-    proc, url = _start(["studio", "--checkpoint", str(tiny), "--out", str(tmp_path / "out")],
+def test_studio_errors_then_generates_and_downloads(browser, tiny_trained_model, tmp_path):
+    proc, url = _start(["studio", "--checkpoint", str(tiny_trained_model), "--out", str(tmp_path / "out")],
                        tmp_path)
     try:
         page, outside = _page(browser, url)

@@ -4,33 +4,8 @@ import json
 import numpy as np
 import pytest
 
+from helpers import write_prepared
 from model.imaging.render import render_view, sample_views
-
-
-def write_prepared(root, objects: dict, splits: dict, version: str = "test"):
-    """A minimal prepared dataset (manifest, records, prepared meshes) of hand-built objects."""
-    import trimesh
-    from model.data.format import ObjectRecord, atomic_write_json, save_part_arrays, save_record
-    atomic_write_json(root / "manifest.json", {
-        "format": 1, "data_version": version, "source": "example", "seed": 0, "splits": splits,
-        "labels": sorted({p.label for o in objects.values() for p in o.parts}),
-        "categories": sorted({o.category for o in objects.values()})})
-    for split, ids in splits.items():
-        for oid in ids:
-            obj = objects[oid]
-            toks, types, parents, labels = obj.tokens()
-            order = obj.topological_order()
-            save_record(root, ObjectRecord(id=oid, category=obj.category, split=split, labels=labels,
-                                           parents=parents.tolist(), joint_types=types.tolist(),
-                                           tokens=toks.tolist(), summary=obj.summary()))
-            (root / "meshes" / oid).mkdir(parents=True, exist_ok=True)
-            pts = []
-            for k, i in enumerate(order):
-                mesh = obj.parts[i].mesh
-                mesh.export(root / "meshes" / oid / f"{k}.obj")
-                p = np.asarray(trimesh.sample.sample_surface(mesh, 256, seed=k)[0], np.float64)
-                pts.append((p - p.mean(0)) / max(np.ptp(p, axis=0).max(), 1e-6) * 1.9)
-            save_part_arrays(root, oid, points=np.stack(pts).astype(np.float16))
 
 
 @pytest.fixture(scope="module")

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 import torch
 
-from test_imaging_render import write_prepared
+from helpers import write_prepared
 
 torch.set_num_threads(1)
 
@@ -199,13 +199,13 @@ def test_extra_training_sets_join_the_training_objects(tiny_set, tmp_path):
         _run(tiny_set, 0, 1, out=tmp_path / "bad2", extra=[(tmp_path / "xprep", tmp_path / "xrend3")])
 
 
-def test_image_pipeline_report_runs_images_through_the_whole_generator(tiny_set, tmp_path):
+def test_image_pipeline_report_runs_images_through_the_whole_generator(tiny_set, tiny_image_model,
+                                                                       tmp_path):
     """POR, validity and structure of image requests through Generator + export (the
     figures issue 8 asks for besides the decoding accuracy)."""
     from model.imaging.evaluate import image_pipeline_report
-    from test_ros_model import _tiny_checkpoints
 
-    ckpt = _tiny_checkpoints(tmp_path / "ckpt")
+    ckpt = tiny_image_model
     rep = image_pipeline_report(str(tiny_set / "prepared"), str(tiny_set / "renders"),
                                 checkpoint=str(ckpt), split="test", n=1, por_states=3,
                                 out_dir=str(tmp_path / "out"), progress=False)
@@ -388,15 +388,14 @@ def test_upsampled_input_run_caches_its_own_features_and_round_trips(tiny_set, t
 
 
 @pytest.mark.slow     # ~100 s: two generators on freshly trained tiny checkpoints
-def test_generator_follows_the_image_count_head(tiny_set, tmp_path):
+def test_generator_follows_the_image_count_head(tiny_set, tiny_model_factory):
     """Image requests through the product decode to the count head's plan (here: a head
     that counts zero of everything, so only the root part is made)."""
     from model.imaging.counts import CountHead, CountHeadConfig
     from model.pipeline import GenerationConfig, Generator
-    from test_ros_model import _tiny_checkpoints
 
     labels = ["body", "cap", "door", "drawer", "handle"]
-    folder = _tiny_checkpoints(tmp_path / "ckpt", count_labels=labels)
+    folder = tiny_model_factory("count_head", shape="sphere", image=True, count_labels=labels)
     ck = torch.load(folder / "image.pt", map_location="cpu", weights_only=False)
     head = CountHead(CountHeadConfig(labels=labels, max_count=4))
     with torch.no_grad():

@@ -4,7 +4,7 @@ import json
 
 import pytest
 
-from test_metrics_common import build_prepared, make_tiny_checkpoints
+from helpers import build_prepared
 
 
 @pytest.fixture(autouse=True)
@@ -40,10 +40,8 @@ def test_eval_baselines_only(prepared, tmp_path):
 
 
 @pytest.fixture(scope="module")
-def tiny_checkpoints(tmp_path_factory):
-    root = tmp_path_factory.mktemp("ckpt")
-    return (make_tiny_checkpoints(root / "full"),
-            make_tiny_checkpoints(root / "no_tpe", ablation="no_tpe"))
+def tiny_checkpoints(tiny_model, tiny_model_factory):
+    return tiny_model, tiny_model_factory("no_tpe", ablation="no_tpe")
 
 
 def test_eval_tiny_checkpoint_with_ablation(prepared, tiny_checkpoints, tmp_path):

@@ -7,12 +7,11 @@ import numpy as np
 import pytest
 
 from model.pipeline.api import GenerationConfig, GenerationError
-from pipeline_common import make_trained_tiny
 
 
 @pytest.fixture(scope="module")
-def tiny(tmp_path_factory):
-    return make_trained_tiny(tmp_path_factory.mktemp("pipe"))
+def tiny(tiny_trained_model):
+    return tiny_trained_model          # shared, read-only: copy files out before changing them
 
 
 @pytest.fixture(scope="module")

@@ -12,14 +12,13 @@ import pytest
 
 from model.pipeline.batch import (BatchError, plan_jobs, read_manifest, read_prompts,
                                   run_batch)
-from pipeline_common import make_trained_tiny
 
 LONG = "a cabinet " * 300            # over the 2000-character prompt limit: a failing job
 
 
 @pytest.fixture(scope="module")
-def tiny(tmp_path_factory):
-    return make_trained_tiny(tmp_path_factory.mktemp("batch"))
+def tiny(tiny_trained_model):
+    return tiny_trained_model
 
 
 def _config(tiny):

@@ -17,46 +17,10 @@ from artformer_ros.client import GeneratorClient, start_node, stop_node  # noqa:
 pytestmark = pytest.mark.ros
 
 
-def _sphere_decoder(path):
-    """Fit the random SDF decoder to a sphere (radius 0.6 of the part cube) for latents of
-    any scale. Whether a randomly initialised decoder crosses zero at all is luck of the init
-    (it changes with the geometry code); these tests are about the ROS path, so every part
-    must get a surface."""
-    from model.geometry.checkpoint import load_checkpoint, save_checkpoint
-
-    ae, _ = load_checkpoint(path, "sdf")
-    gen = torch.Generator().manual_seed(0)
-    zs = torch.cat([torch.randn(4, ae.cfg.z_dim, generator=gen) * s for s in (0.25, 1.0, 4.0)])
-    planes = ae.decode_planes(zs).clone()              # (12, 3, C, R, R), out of inference mode
-    opt = torch.optim.Adam(ae.decoder.parameters(), lr=3e-3)
-    for _ in range(200):
-        xyz = torch.rand(len(zs), 1024, 3, generator=gen) * 2 - 1        # (12, 1024, 3)
-        loss = (ae.decoder(planes, xyz) - (xyz.norm(dim=-1) - 0.6)).abs().mean()
-        opt.zero_grad()
-        loss.backward()
-        opt.step()
-    assert loss.item() < 0.05, loss.item()
-    save_checkpoint(path, "sdf", ae)
-
-
-def _tiny_checkpoints(folder, **kw):
-    """transformer/sdf/prior (the metrics tests' helper, SDF decoder fitted to a sphere) + an
-    image stage built from the same random transformer (an image checkpoint is a transformer
-    checkpoint with an image condition and the frozen EfficientNet-Lite0 config)."""
-    from test_metrics_common import make_tiny_checkpoints
-
-    make_tiny_checkpoints(folder, seed=0, **kw)
-    _sphere_decoder(folder / "sdf.pt")
-    ck = torch.load(folder / "transformer.pt", map_location="cpu", weights_only=False)
-    ck.update(condition="image", image_encoder={"config": {}, "tail": {}})
-    torch.save(ck, folder / "image.pt")
-    return folder
-
-
 @pytest.fixture(scope="module")
-def ros_setup(tmp_path_factory):
+def ros_setup(tmp_path_factory, tiny_image_model):
     tmp = tmp_path_factory.mktemp("ros_model")
-    ckpt = _tiny_checkpoints(tmp / "ckpt")
+    ckpt = tiny_image_model
     saved = {k: os.environ.get(k) for k in ("ROS_DOMAIN_ID", "ROS_AUTOMATIC_DISCOVERY_RANGE")}
     os.environ["ROS_DOMAIN_ID"] = str(random.SystemRandom().randint(1, 100))
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"

@@ -185,7 +185,7 @@ def test_torchrun_two_processes_train_the_text_transformer(tmp_path):
     if not torchrun.exists():
         pytest.skip("torchrun not installed in this environment")
     sys.path.insert(0, str(Path(__file__).parent))
-    from test_articulation_common import write_toy_dataset
+    from helpers import write_toy_dataset
     write_toy_dataset(tmp_path / "data", n=10)
     env = dict(os.environ, OMP_NUM_THREADS="1", PYTHONPATH=str(ROOT))
     cmd = [str(torchrun), "--standalone", "--nproc_per_node", "2", "-m", "model", "train",
