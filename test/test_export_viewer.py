@@ -109,6 +109,7 @@ def _wait_for_object(page, min_pixels=3000, timeout=60):
     raise AssertionError(f"no object rendered (object pixels {mask.sum()})")
 
 
+@pytest.mark.slow     # headless Chromium renders and drags the slider (~25-35 s on 2 busy cores)
 def test_view_renders_the_object_and_the_openness_slider_moves_it(browser, tmp_path):
     export_object(example_objects()["cabinet"], tmp_path / "cabinet", preview=False)
     proc, url = _start(["view", str(tmp_path / "cabinet")], tmp_path)

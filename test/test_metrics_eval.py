@@ -103,6 +103,7 @@ def test_bench_tiny_checkpoint_in_fresh_process(tiny_checkpoints, tmp_path):
     assert res["load_seconds"] > 0
 
 
+@pytest.mark.slow     # loads the shipped image model and its encoder (~10 s on 2 busy cores)
 def test_bench_times_image_requests_of_the_shipped_model(tmp_path):
     from PIL import Image
     from skimage import data as skdata
