@@ -127,7 +127,16 @@ def _presets() -> dict[str, Preset]:
         prior_train=TrainConfig(steps=200_000, batch_size=64, lr=1e-4, warmup=1000,
                                 val_every=2000, val_parts=1024, ckpt_every=5000),
     )
-    return {"tiny": tiny, "small": small, "paper": paper}
+    # small with a 64 x 64 tri-plane (one more down-sampling block keeps the 4 x 4 latent
+    # grid, so z, the prior and the transformer's code layout stay as in small): thin walls
+    # decode broken at 32 x 32 (docs/geometry.md, "How good it is, and why walls break")
+    small_fine = Preset(
+        sdf=SDFConfig(plane_res=64, vae_channels=(32, 64, 64, 64)),
+        prior=PriorConfig(),
+        sdf_train=small.sdf_train,
+        prior_train=small.prior_train,
+    )
+    return {"tiny": tiny, "small": small, "small-fine": small_fine, "paper": paper}
 
 
 PRESETS: dict[str, Preset] = _presets()
