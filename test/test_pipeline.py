@@ -188,3 +188,21 @@ def test_refine_switch_and_eval_audit_rows(tiny, tmp_path, capsys):
     assert set(data) == {"data floor", "raw model", "refined", "retrieval (refined)"}
     assert all(len(v["objects"]) == 1 for v in data.values())
     assert "sim-ready:" in capsys.readouterr().out
+
+
+def test_a_transformer_trained_against_another_prior_is_refused(tiny_model_factory, tmp_path):
+    import shutil
+
+    from model.pipeline import GenerationConfig, Generator
+    from model.pipeline.api import GenerationError
+
+    a = tiny_model_factory("prior_a", seed=3)
+    b = tiny_model_factory("prior_b", seed=4)          # another random shape prior
+    mixed = tmp_path / "mixed"
+    mixed.mkdir()
+    shutil.copy(a / "transformer.pt", mixed / "transformer.pt")
+    for stage in ("sdf.pt", "prior.pt"):
+        shutil.copy(b / stage, mixed / stage)
+    Generator.load(GenerationConfig(checkpoint=str(a)))              # its own prior: loads
+    with pytest.raises(GenerationError, match="another shape prior"):
+        Generator.load(GenerationConfig(checkpoint=str(mixed)))

@@ -132,8 +132,10 @@ class Generator:
         t0 = time.perf_counter()
         paths = find_checkpoints(config.checkpoint)
         try:
-            articulation = ArticulationModel.load(paths["transformer"])
             shape = ShapeModel.load(paths["sdf"], paths["prior"])
+            # refuses a transformer trained against another shape prior
+            articulation = ArticulationModel.load(paths["transformer"],
+                                                  prior=shape.info["fingerprint"])
         except GenerationError:
             raise
         except Exception as e:  # corrupt / mismatched checkpoints: say which stage
@@ -143,7 +145,7 @@ class Generator:
         if paths["image"] is not None:
             try:
                 from model.imaging.model import load_image_model
-                image_model = load_image_model(paths["image"])
+                image_model = load_image_model(paths["image"], prior=shape.info["fingerprint"])
                 check_codebooks(image_model.am.cfg, shape, paths["image"], paths["prior"])
             except Exception as e:
                 log.warning("image model %s not loaded (%s); image requests will be refused",
