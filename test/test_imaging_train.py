@@ -218,6 +218,7 @@ def test_image_pipeline_report_runs_images_through_the_whole_generator(tiny_set,
     assert "image_encoding" in row["timings"]
 
 
+@pytest.mark.slow     # trains an image model and its count head (~6 s on 2 busy cores)
 def test_count_head_learns_counts_and_holds_decoding_to_them(tiny_set, tmp_path):
     """`artformer train image-counts`: a count head over the cached 7x7 map learns the
     per-label counts of its training renders, is stored in the image checkpoint and loaded
@@ -293,6 +294,7 @@ def test_count_head_learns_counts_and_holds_decoding_to_them(tiny_set, tmp_path)
     assert cli_main(["--image", str(tmp_path / "missing.pt")]) == 2
 
 
+@pytest.mark.slow     # trains a trunk, then an image model on it (~7 s on 2 busy cores)
 def test_fine_tuned_trunk_feeds_the_image_model(tiny_set, tmp_path):
     """`artformer train image-trunk` fine-tunes trunk blocks to count parts; `train image
     --trunk` caches features with them and stores them in the checkpoint; the loader applies
@@ -476,6 +478,7 @@ def test_centre_map_counts_visible_part_centres_per_label_and_cell():
     assert centre_map(np.full((224, 224), -1), ["body"], ["body"]).sum() == 0
 
 
+@pytest.mark.slow     # trains an image model and two trunks (~11 s on 2 busy cores)
 def test_partmaps_of_a_render_set_and_a_trunk_trained_on_them(tiny_set, tmp_path):
     """`artformer data partmaps` maps every rendered view (each part seen in the render is
     counted once); the file is reused; `image-trunk --centre-weight` learns the maps beside

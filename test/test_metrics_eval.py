@@ -87,6 +87,7 @@ def test_eval_tiny_checkpoint_with_ablation(prepared, tiny_checkpoints, tmp_path
         assert (out / f).stat().st_size > 1000
 
 
+@pytest.mark.slow     # a cold start in a fresh process (~7 s on 2 busy cores)
 def test_bench_tiny_checkpoint_in_fresh_process(tiny_checkpoints, tmp_path):
     from model.metrics.commands import main
     out = tmp_path / "bench.json"
