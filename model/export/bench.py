@@ -116,7 +116,7 @@ def _mujoco_rest(urdf_path: str) -> tuple[int, int, float]:
 def _generated(n: int, out: str | None) -> int:
     """Collision of generated objects: the generator's boxes (from each part's SDF
     occupancy) against V-HACD on the marching-cubes meshes, same objects."""
-    from model.metrics.reference import freeform_prompts
+    from model.metrics.reference import BENCH_PATH, freeform_prompts
     from model.pipeline import GenerationConfig, Generator
 
     from .collision import CollisionConfig
@@ -125,7 +125,7 @@ def _generated(n: int, out: str | None) -> int:
 
     root = Path(out or tempfile.mkdtemp(prefix="artformer_collision_bench_"))
     gen = Generator.load(GenerationConfig())
-    prompts = freeform_prompts(None)[:n]
+    prompts = freeform_prompts(BENCH_PATH)[:n]
     rows = {"boxes": [], "vhacd": []}
     print("| prompt | parts | method | pieces | export s | contacts at rest | deepest at rest mm "
           "| max penetration over the sweep mm | simulators ok |")

@@ -39,7 +39,7 @@ class BenchConfig:
     steps: Optional[int] = None
     resolution: Optional[int] = None
     export: bool = True
-    prompts_file: Optional[str] = None   # default: the shipped free-form prompts
+    prompts_file: Optional[str] = None   # default: the fixed bench prompts (prompts_bench.txt)
     images: Optional[list] = None        # image files: time image requests instead of prompts
     warmup: int = 1                      # untimed generations first (lazy inits, allocator)
 
@@ -93,8 +93,8 @@ def run_child(cfg: BenchConfig, loader: Optional[Callable] = None) -> dict:
     torch.set_num_threads(max(1, cfg.threads))
     from model.core.runtime import release_free_memory, settle_after_load
     from model.pipeline.api import GenerationConfig
-    from .reference import freeform_prompts
-    requests = list(cfg.images) if cfg.images else freeform_prompts(cfg.prompts_file)
+    from .reference import BENCH_PATH, freeform_prompts
+    requests = list(cfg.images) if cfg.images else freeform_prompts(cfg.prompts_file or BENCH_PATH)
 
     def request(i: int, seed: int):
         r = requests[i % len(requests)]

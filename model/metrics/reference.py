@@ -17,6 +17,8 @@ from model.data import format as fmt
 log = logging.getLogger(__name__)
 
 FREEFORM_PATH = Path(__file__).with_name("prompts_freeform.txt")
+# the fixed workload of `artformer bench` (kept as it is, so speed figures stay comparable)
+BENCH_PATH = Path(__file__).with_name("prompts_bench.txt")
 
 
 def freeform_prompts(path: str | Path | None = None) -> list[str]:
