@@ -597,20 +597,7 @@ class ArticulationModel:
                 else:
                     jt = int(out["jt"][t].argmax())
                 row["logp"] += float(torch.log_softmax(out["jt"][t].float(), -1)[jt])
-            cs = self.table_cs_n[li]
-            row["lab"].append(count_i)
-            row["tok"].append(out["art"][t].float().clone())
-            row["jt"].append(jt)
-            row["cs"].append(cs)
-            row["cs_raw"].append(cs_raw.clone())
-            row["geo"].append(out["geo"][t].float().clone())
-            row["par"].append(t - 1)
-            row["depth"].append(depth_child)
-            row["nkids"][t] += 1
-            row["nkids"].append(0)
-            row["done"].append(False)
-            row["kept"].append(False)
-            row["src"].append(-1)
+            self._push(row, out, t, li, jt, depth_child)
 
     def _sample_label(self, cs_raw: torch.Tensor, cat: Optional[str], labels: list[str],
                       gen: torch.Generator, temperature: float,
@@ -718,7 +705,11 @@ class ArticulationModel:
         names.append(lab)
         if need.get(lab, 0) > 0:
             need[lab] -= 1
-        row["lab"].append(self._count_index.get(lab, -1))
+        self._push(row, out, t, li, jt, depth)
+
+    def _push(self, row: dict, out: dict, t: int, li: int, jt: int, depth: int) -> None:
+        """Append to ``row`` the child predicted at token t, label-table entry li."""
+        row["lab"].append(self._count_index.get(self.table_labels[li], -1))
         row["tok"].append(out["art"][t].float().clone())
         row["jt"].append(jt)
         row["cs"].append(self.table_cs_n[li])
