@@ -143,81 +143,91 @@ def _write_stage(model: URDFModel, path: Path, floating: bool):
 
     frames = model.rest_link_frames()
     link_paths: dict[str, str] = {}
-    used: set[str] = set()
     for name, link in model.links.items():
         ident = _ident(name)
-        if ident in used or ident == "joints":
+        if ident in {Path(lp).name for lp in link_paths.values()} or ident == "joints":
             raise ConvertError(f"link name {name!r} clashes with another prim name in USD")
-        used.add(ident)
-        lp = f"{root_path}/{ident}"
-        link_paths[name] = lp
-        xf = UsdGeom.Xform.Define(stage, lp)
-        _set_transform(xf, frames[name])
-        prim = xf.GetPrim()
-        UsdPhysics.RigidBodyAPI.Apply(prim)
-        mass = UsdPhysics.MassAPI.Apply(prim)
-        if link.mass > 0:
-            mass.CreateMassAttr(float(link.mass))
-            mass.CreateCenterOfMassAttr(Gf.Vec3f(*map(float, link.com[:3, 3])))
-            if link.inertia is not None:
-                w, V = np.linalg.eigh(link.inertia_in_link_frame())
-                if np.linalg.det(V) < 0:
-                    V[:, 2] = -V[:, 2]
-                mass.CreateDiagonalInertiaAttr(Gf.Vec3f(*map(float, np.maximum(w, 0.0))))
-                mass.CreatePrincipalAxesAttr(_gf_quatf(V))
-        if link.visuals:
-            UsdGeom.Scope.Define(stage, f"{lp}/visuals")
-        for k, g in enumerate(link.visuals):
-            _geom_prim(stage, f"{lp}/visuals/{_ident(g.name or f'visual_{k}')}_{k}", g, g.rgba)
-        if link.collisions:
-            UsdGeom.Scope.Define(stage, f"{lp}/collisions")
-        for k, g in enumerate(link.collisions):
-            gp = _geom_prim(stage, f"{lp}/collisions/{_ident(g.name or f'collision_{k}')}_{k}", g)
-            if gp is None:
-                continue
-            p = gp.GetPrim()
-            UsdGeom.Imageable(p).CreatePurposeAttr(UsdGeom.Tokens.guide)
-            UsdPhysics.CollisionAPI.Apply(p)
-            if g.kind == "mesh":
-                UsdPhysics.MeshCollisionAPI.Apply(p).CreateApproximationAttr(
-                    UsdPhysics.Tokens.convexHull)
-
+        link_paths[name] = f"{root_path}/{ident}"
+        _link_prim(stage, link_paths[name], link, frames[name])
     UsdGeom.Scope.Define(stage, f"{root_path}/joints")
-    moving = []
+    moving = [j.name for j in model.joints if j.type != "fixed"]
     for j in model.joints:
-        jp = f"{root_path}/joints/{_ident(j.name)}"
-        if j.type == "fixed":
-            joint = UsdPhysics.FixedJoint.Define(stage, jp)
-            R = np.eye(3)
-        else:
-            R = _align_x(j.axis)
-            if j.type == "prismatic":
-                joint = UsdPhysics.PrismaticJoint.Define(stage, jp)
-                joint.CreateLowerLimitAttr(float(j.lower))
-                joint.CreateUpperLimitAttr(float(j.upper))
-            else:
-                joint = UsdPhysics.RevoluteJoint.Define(stage, jp)
-                if j.type == "revolute":
-                    joint.CreateLowerLimitAttr(float(math.degrees(j.lower)))
-                    joint.CreateUpperLimitAttr(float(math.degrees(j.upper)))
-            joint.CreateAxisAttr(UsdPhysics.Tokens.x)
-            moving.append(j.name)
-        joint.CreateBody0Rel().SetTargets([Sdf.Path(link_paths[j.parent])])
-        joint.CreateBody1Rel().SetTargets([Sdf.Path(link_paths[j.child])])
-        joint.CreateLocalPos0Attr(Gf.Vec3f(*map(float, j.origin[:3, 3])))
-        joint.CreateLocalRot0Attr(_gf_quatf(j.origin[:3, :3] @ R))
-        joint.CreateLocalPos1Attr(Gf.Vec3f(0.0, 0.0, 0.0))
-        joint.CreateLocalRot1Attr(_gf_quatf(R))
-        joint.GetPrim().SetCustomDataByKey("urdf:joint_name", j.name)
-        if j.effort > 0:
-            joint.GetPrim().SetCustomDataByKey("urdf:effort", float(j.effort))
-        if j.velocity > 0:
-            joint.GetPrim().SetCustomDataByKey("urdf:velocity", float(j.velocity))
+        _joint_prim(stage, f"{root_path}/joints/{_ident(j.name)}", j, link_paths)
     if not floating:
         fix = UsdPhysics.FixedJoint.Define(stage, f"{root_path}/joints/root_joint")
         fix.CreateBody1Rel().SetTargets([Sdf.Path(link_paths[model.root])])
     stage.GetRootLayer().Save()
     return root_path, moving
+
+
+def _link_prim(stage, lp: str, link, frame: np.ndarray) -> None:
+    """A rigid body Xform with its mass properties, visual meshes and collision pieces."""
+    from pxr import Gf, UsdGeom, UsdPhysics
+
+    xf = UsdGeom.Xform.Define(stage, lp)
+    _set_transform(xf, frame)
+    prim = xf.GetPrim()
+    UsdPhysics.RigidBodyAPI.Apply(prim)
+    mass = UsdPhysics.MassAPI.Apply(prim)
+    if link.mass > 0:
+        mass.CreateMassAttr(float(link.mass))
+        mass.CreateCenterOfMassAttr(Gf.Vec3f(*map(float, link.com[:3, 3])))
+        if link.inertia is not None:
+            w, V = np.linalg.eigh(link.inertia_in_link_frame())
+            if np.linalg.det(V) < 0:
+                V[:, 2] = -V[:, 2]
+            mass.CreateDiagonalInertiaAttr(Gf.Vec3f(*map(float, np.maximum(w, 0.0))))
+            mass.CreatePrincipalAxesAttr(_gf_quatf(V))
+    if link.visuals:
+        UsdGeom.Scope.Define(stage, f"{lp}/visuals")
+    for k, g in enumerate(link.visuals):
+        _geom_prim(stage, f"{lp}/visuals/{_ident(g.name or f'visual_{k}')}_{k}", g, g.rgba)
+    if link.collisions:
+        UsdGeom.Scope.Define(stage, f"{lp}/collisions")
+    for k, g in enumerate(link.collisions):
+        gp = _geom_prim(stage, f"{lp}/collisions/{_ident(g.name or f'collision_{k}')}_{k}", g)
+        if gp is None:
+            continue
+        p = gp.GetPrim()
+        UsdGeom.Imageable(p).CreatePurposeAttr(UsdGeom.Tokens.guide)
+        UsdPhysics.CollisionAPI.Apply(p)
+        if g.kind == "mesh":
+            UsdPhysics.MeshCollisionAPI.Apply(p).CreateApproximationAttr(
+                UsdPhysics.Tokens.convexHull)
+
+
+def _joint_prim(stage, jp: str, j, link_paths: dict) -> None:
+    """A UsdPhysics joint whose frames put X along the URDF axis (limits in degrees for
+    revolute joints, none for continuous ones); the URDF's name, effort and velocity go into
+    customData."""
+    from pxr import Gf, Sdf, UsdPhysics
+
+    if j.type == "fixed":
+        joint = UsdPhysics.FixedJoint.Define(stage, jp)
+        R = np.eye(3)
+    else:
+        R = _align_x(j.axis)
+        if j.type == "prismatic":
+            joint = UsdPhysics.PrismaticJoint.Define(stage, jp)
+            joint.CreateLowerLimitAttr(float(j.lower))
+            joint.CreateUpperLimitAttr(float(j.upper))
+        else:
+            joint = UsdPhysics.RevoluteJoint.Define(stage, jp)
+            if j.type == "revolute":
+                joint.CreateLowerLimitAttr(float(math.degrees(j.lower)))
+                joint.CreateUpperLimitAttr(float(math.degrees(j.upper)))
+        joint.CreateAxisAttr(UsdPhysics.Tokens.x)
+    joint.CreateBody0Rel().SetTargets([Sdf.Path(link_paths[j.parent])])
+    joint.CreateBody1Rel().SetTargets([Sdf.Path(link_paths[j.child])])
+    joint.CreateLocalPos0Attr(Gf.Vec3f(*map(float, j.origin[:3, 3])))
+    joint.CreateLocalRot0Attr(_gf_quatf(j.origin[:3, :3] @ R))
+    joint.CreateLocalPos1Attr(Gf.Vec3f(0.0, 0.0, 0.0))
+    joint.CreateLocalRot1Attr(_gf_quatf(R))
+    joint.GetPrim().SetCustomDataByKey("urdf:joint_name", j.name)
+    if j.effort > 0:
+        joint.GetPrim().SetCustomDataByKey("urdf:effort", float(j.effort))
+    if j.velocity > 0:
+        joint.GetPrim().SetCustomDataByKey("urdf:velocity", float(j.velocity))
 
 
 def export_usd(folder: os.PathLike, out: Optional[os.PathLike] = None, *,
@@ -288,64 +298,76 @@ def check_usd(path: os.PathLike, urdf: Optional[os.PathLike] = None, *,
     cache = UsdGeom.XformCache()
     joints = {}
     for prim in stage.Traverse():
-        if not prim.IsA(UsdPhysics.Joint):
-            continue
-        j = UsdPhysics.Joint(prim)
-        name = prim.GetCustomDataByKey("urdf:joint_name") or prim.GetName()
-        b0, b1 = j.GetBody0Rel().GetTargets(), j.GetBody1Rel().GetTargets()
-        bodies = []
-        for rel in (b0, b1):
-            if not rel:
-                bodies.append(None)
-                continue
-            body = stage.GetPrimAtPath(rel[0])
-            if not body or not body.HasAPI(UsdPhysics.RigidBodyAPI):
-                problems.append(f"joint {name}: {rel[0]} is not a rigid body")
-                bodies.append(None)
-                continue
-            m = UsdPhysics.MassAPI(body).GetMassAttr().Get()
-            if not m or m <= 0:
-                problems.append(f"joint {name}: body {rel[0]} has no positive mass")
-            bodies.append(body)
-        if bodies[0] is not None and bodies[1] is not None:
-            W0 = _matrix(cache.GetLocalToWorldTransform(bodies[0])) @ _pose(
-                j.GetLocalPos0Attr().Get(), j.GetLocalRot0Attr().Get())
-            W1 = _matrix(cache.GetLocalToWorldTransform(bodies[1])) @ _pose(
-                j.GetLocalPos1Attr().Get(), j.GetLocalRot1Attr().Get())
-            if np.abs(W0 - W1).max() > tol:
-                problems.append(f"joint {name}: its two frames differ at rest by "
-                                f"{np.abs(W0 - W1).max():.2e}")
-        kind, lo, hi = "fixed", None, None
-        if prim.IsA(UsdPhysics.RevoluteJoint):
-            r = UsdPhysics.RevoluteJoint(prim)
-            kind, lo, hi = "revolute", r.GetLowerLimitAttr().Get(), r.GetUpperLimitAttr().Get()
-            lo = math.radians(lo) if lo is not None else None
-            hi = math.radians(hi) if hi is not None else None
-        elif prim.IsA(UsdPhysics.PrismaticJoint):
-            r = UsdPhysics.PrismaticJoint(prim)
-            kind, lo, hi = "prismatic", r.GetLowerLimitAttr().Get(), r.GetUpperLimitAttr().Get()
-        lo = lo if lo is not None and math.isfinite(lo) else None   # fallback: -inf / inf
-        hi = hi if hi is not None and math.isfinite(hi) else None
-        if lo is not None and hi is not None and lo > hi:
-            problems.append(f"joint {name}: lower limit {lo} > upper {hi}")
-        joints[name] = (kind, lo, hi, [b.GetName() if b is not None else None for b in bodies])
+        if prim.IsA(UsdPhysics.Joint):
+            name = prim.GetCustomDataByKey("urdf:joint_name") or prim.GetName()
+            joints[name] = _check_joint(stage, prim, name, cache, tol, problems)
     if urdf is not None:
-        model = read_urdf(find_urdf(urdf))
-        want = {j.name: j for j in model.moving_joints()}
-        have = {n: v for n, v in joints.items() if v[0] != "fixed"}
-        if sorted(want) != sorted(have):
-            problems.append(f"moving joints differ: URDF {sorted(want)}, USD {sorted(have)}")
-        for n, j in want.items():
-            if n not in have:
-                continue
-            kind, lo, hi, bodies = have[n]
-            if kind != ("prismatic" if j.type == "prismatic" else "revolute"):
-                problems.append(f"joint {n}: URDF type {j.type}, USD {kind}")
-            if j.type != "continuous" and (lo is None or hi is None or abs(lo - j.lower) > 1e-6
-                                           or abs(hi - j.upper) > 1e-6):
-                problems.append(f"joint {n}: USD limits ({lo}, {hi}), URDF ({j.lower}, {j.upper})")
-            if j.type == "continuous" and (lo is not None or hi is not None):
-                problems.append(f"joint {n}: continuous in the URDF but limited in USD")
-            if bodies != [_ident(j.parent), _ident(j.child)]:
-                problems.append(f"joint {n}: USD bodies {bodies}, URDF {j.parent} -> {j.child}")
+        problems += _against_urdf(read_urdf(find_urdf(urdf)), joints)
+    return problems
+
+
+def _check_joint(stage, prim, name: str, cache, tol: float, problems: list) -> tuple:
+    """(kind, lower, upper, [body0, body1] names) of a USD joint; what is wrong with its
+    bodies, frames or limits goes into ``problems``."""
+    from pxr import UsdPhysics
+
+    j = UsdPhysics.Joint(prim)
+    bodies = []
+    for rel in (j.GetBody0Rel().GetTargets(), j.GetBody1Rel().GetTargets()):
+        if not rel:
+            bodies.append(None)
+            continue
+        body = stage.GetPrimAtPath(rel[0])
+        if not body or not body.HasAPI(UsdPhysics.RigidBodyAPI):
+            problems.append(f"joint {name}: {rel[0]} is not a rigid body")
+            bodies.append(None)
+            continue
+        m = UsdPhysics.MassAPI(body).GetMassAttr().Get()
+        if not m or m <= 0:
+            problems.append(f"joint {name}: body {rel[0]} has no positive mass")
+        bodies.append(body)
+    if bodies[0] is not None and bodies[1] is not None:
+        W0 = _matrix(cache.GetLocalToWorldTransform(bodies[0])) @ _pose(
+            j.GetLocalPos0Attr().Get(), j.GetLocalRot0Attr().Get())
+        W1 = _matrix(cache.GetLocalToWorldTransform(bodies[1])) @ _pose(
+            j.GetLocalPos1Attr().Get(), j.GetLocalRot1Attr().Get())
+        if np.abs(W0 - W1).max() > tol:
+            problems.append(f"joint {name}: its two frames differ at rest by "
+                            f"{np.abs(W0 - W1).max():.2e}")
+    kind, lo, hi = "fixed", None, None
+    if prim.IsA(UsdPhysics.RevoluteJoint):
+        r = UsdPhysics.RevoluteJoint(prim)
+        kind, lo, hi = "revolute", r.GetLowerLimitAttr().Get(), r.GetUpperLimitAttr().Get()
+        lo = math.radians(lo) if lo is not None else None
+        hi = math.radians(hi) if hi is not None else None
+    elif prim.IsA(UsdPhysics.PrismaticJoint):
+        r = UsdPhysics.PrismaticJoint(prim)
+        kind, lo, hi = "prismatic", r.GetLowerLimitAttr().Get(), r.GetUpperLimitAttr().Get()
+    lo = lo if lo is not None and math.isfinite(lo) else None   # fallback: -inf / inf
+    hi = hi if hi is not None and math.isfinite(hi) else None
+    if lo is not None and hi is not None and lo > hi:
+        problems.append(f"joint {name}: lower limit {lo} > upper {hi}")
+    return kind, lo, hi, [b.GetName() if b is not None else None for b in bodies]
+
+
+def _against_urdf(model, joints: dict) -> list[str]:
+    """The USD's moving joints against the URDF's: the same set, types, limits, bodies."""
+    problems = []
+    want = {j.name: j for j in model.moving_joints()}
+    have = {n: v for n, v in joints.items() if v[0] != "fixed"}
+    if sorted(want) != sorted(have):
+        problems.append(f"moving joints differ: URDF {sorted(want)}, USD {sorted(have)}")
+    for n, j in want.items():
+        if n not in have:
+            continue
+        kind, lo, hi, bodies = have[n]
+        if kind != ("prismatic" if j.type == "prismatic" else "revolute"):
+            problems.append(f"joint {n}: URDF type {j.type}, USD {kind}")
+        if j.type != "continuous" and (lo is None or hi is None or abs(lo - j.lower) > 1e-6
+                                       or abs(hi - j.upper) > 1e-6):
+            problems.append(f"joint {n}: USD limits ({lo}, {hi}), URDF ({j.lower}, {j.upper})")
+        if j.type == "continuous" and (lo is not None or hi is not None):
+            problems.append(f"joint {n}: continuous in the URDF but limited in USD")
+        if bodies != [_ident(j.parent), _ident(j.child)]:
+            problems.append(f"joint {n}: USD bodies {bodies}, URDF {j.parent} -> {j.child}")
     return problems
