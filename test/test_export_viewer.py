@@ -159,8 +159,15 @@ def test_studio_errors_then_generates_and_downloads(browser, tiny_trained_model,
         page.get_by_role("button", name="Download zip").and_(
             page.locator(":enabled")).wait_for(timeout=120000)
         page.get_by_text("parts:").first.wait_for(timeout=10000)
-        shot = page.screenshot()
-        assert (np.asarray(Image.open(io.BytesIO(shot)).convert("L"))[180:, 320:880] < 200).sum() > 500
+        # the scene streams to the page after the answer: poll the canvas until it shows
+        drawn = 0
+        for _ in range(40):
+            shot = page.screenshot()
+            drawn = (np.asarray(Image.open(io.BytesIO(shot)).convert("L"))[180:, 320:880] < 200).sum()
+            if drawn > 500:
+                break
+            page.wait_for_timeout(500)
+        assert drawn > 500
         with page.expect_download(timeout=60000) as dl:
             download.click()
         data = Path(dl.value.path()).read_bytes()
