@@ -431,15 +431,17 @@ def _position_phrase(rng, f: dict, n: int) -> str:
     return ""
 
 
-def _post(rng, obj, label, n, idx, spatial, arranged: bool) -> str:
-    """Spatial phrases after a group's noun phrase: arrangement, side, hinge."""
+def _post(rng, label, n, spatial, arranged: bool, p_arrangement: float = 0.7,
+          p_position: float = 0.6, p_hinge: float = 0.8) -> str:
+    """Spatial phrases after a group's noun phrase, each with its probability: arrangement,
+    side, hinge (``p_hinge`` 0: none, and no draw for it)."""
     f = spatial.get(label, {})
     out = ""
-    if n > 1 and not arranged and rng.random() < 0.7:
+    if n > 1 and not arranged and rng.random() < p_arrangement:
         out += _arrangement_phrase(rng, f)
-    if rng.random() < 0.6:
+    if rng.random() < p_position:
         out += _position_phrase(rng, f, n)
-    if label in HINGED_LABELS and rng.random() < 0.8:
+    if p_hinge and label in HINGED_LABELS and rng.random() < p_hinge:
         out += _hinge_phrase(rng, f)
     return out
 
@@ -509,7 +511,7 @@ def _facts(rng, obj, groups, spatial) -> list[str]:
     for label, n, types, idx in groups:
         arranged: list = []
         np_ = _group_np(rng, obj, label, n, types, idx, spatial, arranged=arranged)
-        post = _post(rng, obj, label, n, idx, spatial, bool(arranged))
+        post = _post(rng, label, n, spatial, bool(arranged))
         out.append(f"{_unhinged(np_) if 'hinge' in post else np_}{post} that "
                    f"{_motion(rng, label, types, n, _opens(spatial, label))}")
     return out
@@ -582,13 +584,7 @@ def describe(obj: ArticulatedObject, rng: Optional[np.random.Generator] = None,
             for label, n, types, idx in groups:
                 arranged: list = []
                 np_ = _group_np(rng, obj, label, n, types, idx, spatial, arranged=arranged)
-                f = spatial.get(label, {})
-                extra = ""
-                if n > 1 and not arranged and rng.random() < 0.5:
-                    extra += _arrangement_phrase(rng, f)
-                if rng.random() < 0.5:
-                    extra += _position_phrase(rng, f, n)
-                nps.append(np_ + extra)
+                nps.append(np_ + _post(rng, label, n, spatial, bool(arranged), 0.5, 0.5, 0.0))
             there = "there is" if len(groups) == 1 and groups[0][1] == 1 else "there are"
             s2 = _choice(rng, [f"It has {_join(nps)}.", f"It comes with {_join(nps)}.",
                                f"On it {there} {_join(nps)}."])
