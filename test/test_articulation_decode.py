@@ -11,6 +11,7 @@ from model.articulation.checkpoint import CheckpointError, read_checkpoint, save
 from model.articulation.config import preset
 from model.articulation.decode import ArticulationModel, DecodedTree
 from model.articulation.network import ArticulationTransformer
+from model.articulation.trees import batch_rows, initial_row
 from model.core.objects import ArticulatedObject, JointType
 from model.data import format as fmt
 
@@ -258,7 +259,7 @@ def test_checkpoint_round_trip_and_fp16_copy(trained, tmp_path):
     for x, y in zip(a, b):
         assert np.array_equal(x.parents, y.parents) and np.allclose(x.tokens, y.tokens)
     with torch.no_grad():
-        tb = am._batch([am._initial_row(None, 8)])
+        tb = batch_rows(am, [initial_row(am, None, 8)])
         o32, _ = am.net(tb, tok[:1], mask[:1])
         o16, _ = am16.net(tb, tok[:1], mask[:1])
     assert torch.allclose(o32["art"], o16["art"], atol=0.05)

@@ -19,7 +19,7 @@ _LAZY = {
     "ArticulationConfig": "config", "TrainConfig": "config", "PRESETS": "config",
     "preset": "config", "ABLATIONS": "config",
     "ArticulationTransformer": "network", "TreeBatch": "network", "Targets": "network",
-    "ArticulationModel": "decode", "DecodedTree": "decode",
+    "ArticulationModel": "model", "DecodedTree": "trees",
     "read_checkpoint": "checkpoint", "save_checkpoint": "checkpoint",
     "build_network": "checkpoint", "CheckpointError": "checkpoint",
 }
