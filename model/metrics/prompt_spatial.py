@@ -1,0 +1,285 @@
+"""Spatial facts of a prompt for the parser (model.metrics.prompt_parse): "hinged on the left",
+"opens downward", "in two columns", "on the right", "above the door", and grid wordings that
+carry a count ("two rows of three drawers" -> 6 drawers). Left / right are the viewer's
+(model.data.vocab.SIDE_DIRECTIONS).
+
+Per sentence: ``_rewrite_counts`` rewrites the grid wordings, ``_spatial_facts`` finds the
+phrases (as ``_Fact`` spans), ``_attach`` merges each into the structure's ``spatial`` under
+the part it describes.
+"""
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+from model.data import vocab
+
+from .prompt_lexicon import SIDE_ADJECTIVES, STOP_WORDS, _Tok, _tokenize
+
+_N = r"(\d+|" + "|".join(sorted(vocab.NUMBER_WORDS[1:13], key=len, reverse=True)) + r"|a single|single)"
+_SIDE = r"(left|right|top|bottom|back|rear|upper|lower|side)"
+_SIDE_NAME = {"rear": "back", "upper": "top", "lower": "bottom"}
+HINGED = ("door", "lid", "cap")   # a bottle's hinged "cap" is read as its lid (prompt_parse._tidy)
+ARRANGED = ("drawer", "door", "lid", "tray", "knob", "dial", "button")
+
+
+def _num(word: str) -> int:
+    word = word.strip()
+    if word.isdigit():
+        return int(word)
+    if word in ("a single", "single"):
+        return 1
+    return vocab.NUMBER_VALUES[word]
+
+
+@dataclass
+class _Fact:
+    key: str
+    values: list
+    start: int
+    end: int
+    mode: str            # "post": the part named before; "pre": the part named next
+    relation_to: str | None = None
+
+
+def _rewrite_counts(sentence: str) -> tuple[str, list[_Fact]]:
+    """Rewrite grid wordings that carry a count ("two rows of three drawers" -> "6 drawers",
+    "a 3 x 3 keypad" -> "9 keypad buttons") and return the arrangement facts they state."""
+    facts: list[_Fact] = []
+
+    def grid(m, rows: int, cols: int, tail: str) -> str:
+        return f"{rows * cols} {tail}".rstrip() + " "
+
+    out, pos = [], 0
+    pat = re.compile(
+        rf"\b(?:in |into |as )?(?:a |an )?{_N}\s?(?:x|×|by)\s?{_N}\s(grid|array|keypad|matrix|layout)(\s+of\b)?"
+        rf"|\b{_N} (rows|columns) of {_N}\b(\s+(?=\w))?"
+        rf"|\b(?:a |an |the |its |their |two |both )?keypads?(?!\s+(?:buttons?|keys))( of\b)?")
+    for m in pat.finditer(sentence):
+        out.append(sentence[pos:m.start()])
+        here = sum(len(x) for x in out)
+        g = m.groups()
+        if g[0] is not None:                 # R x C grid / keypad
+            R, C = _num(g[0]), _num(g[1])
+            arr = {"layout": "grid" if R > 1 and C > 1 else ("row" if R == 1 else "column"),
+                   "rows": R, "columns": C}
+            if g[2] == "keypad" and not g[3]:
+                text = f"{R * C} keypad buttons"
+                mode = "pre"
+            elif g[3]:
+                text = f"{R * C}"
+                mode = "pre"
+            else:
+                text = "in a grid"
+                mode = "post"
+            for k, v in arr.items():
+                facts.append(_Fact(k, [v], here, here if mode == "pre" else here + len(text), mode))
+            out.append(text + (" " if mode == "pre" and not text.endswith("buttons") else ""))
+        elif g[4] is not None:               # N rows of M (drawers)
+            a, b = _num(g[4]), _num(g[6])
+            R, C = (a, b) if g[5] == "rows" else (b, a)
+            followed = g[7] is not None and _part_follows(sentence[m.end():])
+            if followed:
+                text = f"{R * C} "
+                mode = "pre"
+            else:
+                text = "in a grid"
+                mode = "post"
+            lay = "grid" if R > 1 and C > 1 else ("row" if R == 1 else "column")
+            for k, v in (("layout", lay), ("rows", R), ("columns", C)):
+                facts.append(_Fact(k, [v], here, here if mode == "pre" else here + len(text), mode))
+            out.append(text)
+        else:                                 # "a keypad" (of ...)
+            out.append("" if g[8] else "several keypad buttons")
+        pos = m.end()
+    out.append(sentence[pos:])
+    return re.sub(r"[ ]{2,}", " ", "".join(out)) if not facts else "".join(out), facts
+
+
+def _part_follows(text: str) -> bool:
+    """The next few words name a part ("three drawers", "small doors")."""
+    for k, t in enumerate(_tokenize(text)[:4]):
+        if t.kind == "PART":
+            return True
+        if t.kind == "PUNCT" or (t.kind == "WORD" and t.text in STOP_WORDS):
+            return False
+    return False
+
+
+_SPATIAL_PATTERNS: list[tuple[str, str, str]] = [
+    # (key, regex, mode); values come from group 1 (and 2) or the fixed value after '='
+    ("hinge", rf"\bhinged (?:on|at|along|to) (?:the |its |their )?{_SIDE}(?:[- ]hand)?(?: sides?| edges?| ends?)?"
+              rf"(?:,? (?:and|or) (?:on |at )?(?:the |its )?{_SIDE}(?:[- ]hand)?(?: sides?| edges?)?)?", "post"),
+    ("hinge", rf"\b{_SIDE}[- ]hinged\b", "pre"),
+    ("hinge", rf"\bwith (?:a|its|the|their) {_SIDE}(?:[- ]hand)? hinges?\b", "post"),
+    ("hinge", rf"\bhinges? (?:is |are |sits? |sit |runs? )?(?:on|at|along) (?:the |its )?{_SIDE}(?: side| edge)?\b", "post"),
+    ("hinge", rf"\b(?:at|on|by) (?:the|its) {_SIDE} hinges?\b", "post"),
+    ("hinge+sideways", r"\b(?:swings?|opens?|swinging|opening) (?:open |out )?(?:to|towards) the (left|right)\b", "post"),
+    ("opens=down", r"\b(?:opens?|swings?|folds?|drops?|pulls?|flips?|tips?|falls?|tilts?)(?: open| out)?,? ?down(?:ward|wards)?\b", "post"),
+    ("opens=down", r"\b(?:drop|fold|pull|flip)[- ]down\b", "pre"),
+    ("opens=down", r"\bdrops open\b", "post"),
+    ("opens=up", r"\b(?:opens?|swings?|flips?|lifts?|folds?|tilts?|lifting|flipping)(?: open| out)?,? ?up(?:ward|wards)?\b", "post"),
+    ("opens=up", r"\b(?:flip|lift|swing)[- ]up\b", "pre"),
+    ("opens=sideways", r"\b(?:opens?|swings?|swinging|opening)(?: open| out)? (?:sideways|to the side|to one side)\b", "post"),
+    ("opens=sideways+hinge=side", r"\bside[- ](?:opening|hinged)\b", "pre"),
+    ("layout=column", r"\b(?:stacked(?: vertically| up)?(?: one (?:above|on top of|over) (?:the other|another))?"
+                      r"|one (?:above|on top of|over|below|under) (?:the other|another)"
+                      r"|on top of (?:eachother|oneanother)|in a (?:single |vertical )?(?:column|stack)"
+                      r"|vertically stacked|in a vertical line)\b", "post"),
+    ("layout=column", r"\ba (?:vertical )?stack of\b", "pre"),
+    ("layout=row", r"\b(?:side[- ]by[- ]side|in (?:a|one) (?:single |horizontal |neat |straight )?(?:row|line)"
+                   r"|next to (?:eachother|oneanother)|beside (?:eachother|oneanother)"
+                   r"|in a horizontal line)\b", "post"),
+    ("layout=row", r"\ba (?:horizontal )?row of\b", "pre"),
+    ("layout=grid", r"\bin a grid\b", "post"),
+    ("across", rf"\b{_N} across(?:,? (?:and |by |in )?{_N} (?:down|high|deep|tall))?", "post"),
+    ("over", rf"\b{_N} over {_N}\b", "post"),
+    ("relit", r"\b(above|below|under|underneath|beneath|on top of) (?:it|them)\b", "post"),
+    ("vpos+hpos", r"\b(?:on|at|in) the (top|bottom)[- ](left|right)\b", "post"),
+    ("vpos", r"\bacross the (top|bottom)\b", "post"),
+    ("rows", rf"\bin {_N} (?:horizontal )?rows\b", "post"),
+    ("columns", rf"\bin {_N} (?:vertical )?columns\b", "post"),
+    ("relation", r"\b(above|on top of|below|under|underneath|beneath)\b(?: (?:the|a|an|its|their|both))?", "post"),
+    ("hpos", r"\b(?:on|at|to) the (left|right)(?:[- ]hand)?(?: side| end| half)?\b", "post"),
+    ("vpos", r"\b(?:on|at) the (top|bottom)\b(?! of)|\bon (top)\b(?! of)|\bat the (base)\b", "post"),
+]
+_COMPILED = [(k, re.compile(r), m) for k, r, m in _SPATIAL_PATTERNS]
+_ABOVE = {"above", "over", "on top of"}
+_PRE_SIDE = {"left": ("hpos", "left"), "right": ("hpos", "right"), "left-hand": ("hpos", "left"),
+             "right-hand": ("hpos", "right"), "top": ("vpos", "top"), "bottom": ("vpos", "bottom"),
+             "upper": ("vpos", "top"), "lower": ("vpos", "bottom")}
+
+
+def _spatial_facts(sentence: str, toks: list[_Tok]) -> list[_Fact]:
+    """Every spatial phrase of a sentence (spans of earlier patterns are not re-read)."""
+    work = sentence
+    facts: list[_Fact] = []
+    for key, rx, mode in _COMPILED:
+        for m in rx.finditer(work):
+            a, b = m.span()
+            vals = [v for v in m.groups() if v]
+            if key == "relation":
+                part = None
+                for t in [t for t in toks if t.start >= b][:5]:   # "above a row of three buttons"
+                    if t.kind == "PART":
+                        part = t
+                        break
+                    if t.kind not in ("WORD", "NUM", "DET", "MULT") or \
+                            (t.text in STOP_WORDS and t.text != "of"):
+                        break
+                if part is not None:
+                    rel = "above" if vals[0] in _ABOVE else "below"
+                    facts.append(_Fact(rel, [part.value], a, part.end, "post", part.value))
+                    b = part.end
+                else:   # "a door underneath": below the part named before it, if any
+                    facts.append(_Fact("relprev", ["above" if vals[0] in _ABOVE else "below"],
+                                       a, b, "post"))
+            elif key == "across":
+                facts.append(_Fact("columns", [_num(vals[0])], a, b, mode))
+                if len(vals) > 1:
+                    facts.append(_Fact("rows", [_num(vals[1])], a, b, mode))
+            elif key == "over":
+                if _num(vals[0]) == _num(vals[1]):
+                    for k2, v2 in (("layout", "grid" if _num(vals[0]) > 1 else "column"),
+                                   ("rows", 2), ("columns", _num(vals[0]))):
+                        facts.append(_Fact(k2, [v2], a, b, mode))
+            elif key == "relit":
+                # "three drawers side by side above them": about the part named just before;
+                # "and, below them, two doors": about the part named next
+                before = [t for t in toks if t.end <= a and t.kind in ("PART", "PUNCT")]
+                mode2 = "post" if before and before[-1].kind == "PART" else "next"
+                facts.append(_Fact("relit", ["above" if vals[0] in _ABOVE else "below"], a, b, mode2))
+            elif key == "vpos+hpos":
+                facts.append(_Fact("vpos", [vals[0]], a, b, mode))
+                facts.append(_Fact("hpos", [vals[1]], a, b, mode))
+            elif key == "hinge+sideways":
+                facts.append(_Fact("hinge", vals, a, b, mode))
+                facts.append(_Fact("opens", ["sideways"], a, b, mode))
+            elif "=" in key:
+                for kv in key.split("+"):
+                    k, v = kv.split("=")
+                    facts.append(_Fact(k, [v], a, b, mode))
+            elif key in ("rows", "columns"):
+                facts.append(_Fact(key, [_num(vals[0])], a, b, mode))
+            elif key == "vpos":
+                facts.append(_Fact("vpos", ["bottom" if vals[0] == "base" else vals[0]], a, b, mode))
+            else:
+                facts.append(_Fact(key, [_SIDE_NAME.get(v, v) for v in vals], a, b, mode))
+            work = work[:a] + " " * (b - a) + work[b:]
+    # side adjectives right before a part: "a left door", "the upper drawer"
+    for k, t in enumerate(toks):
+        if t.kind == "WORD" and t.text in _PRE_SIDE and work[t.start:t.end] == t.text:
+            nxt = toks[k + 1:k + 3]
+            if nxt and (nxt[0].kind == "PART" or (len(nxt) > 1 and nxt[0].kind in ("WORD", "MOTION")
+                                                   and nxt[1].kind == "PART")):
+                key, val = _PRE_SIDE[t.text]
+                facts.append(_Fact(key, [val], t.start, t.end, "pre"))
+    return facts
+
+
+def _attach(facts: list[_Fact], toks: list[_Tok], earlier: list[str],
+            spatial: dict[str, dict]) -> list[str]:
+    """Attach each fact to the part it describes and merge it into ``spatial``; returns the
+    labels a hinge or opening fact was said of (they turn on a hinge: revolute)."""
+    hinged: list[str] = []
+    parts = [t for t in toks if t.kind == "PART"]
+    for f in facts:
+        allowed = HINGED if f.key in ("hinge", "opens") else \
+            ARRANGED if f.key in ("layout", "rows", "columns") else vocab.COUNTABLE_LABELS
+        if f.key == "relit":
+            # "below it, a small door" / "three doors below them": one part kind relative to
+            # the one named before
+            before = [t.value for t in parts if t.end <= f.start]
+            after = [t.value for t in parts if t.start >= f.end]
+            if f.mode == "post" and before:
+                subj = before[-1]
+                objs = [v for v in before[:-1] if v != subj] or [v for v in earlier if v != subj]
+            else:
+                subj = after[0] if after else None
+                objs = [v for v in before if v != subj] or [v for v in earlier if v != subj]
+            if subj is not None and objs:
+                d = spatial.setdefault(subj, {})
+                d[f.values[0]] = sorted(set(d.get(f.values[0], [])) | {objs[-1]})
+            continue
+        target = None
+        # a phrase right before a part noun (adjectives between) is about that part:
+        # "stacked hinged doors", "a drop-down door"
+        nxt = [t for t in toks if t.start >= f.end][:3]
+        for t in nxt:
+            if t.kind == "PART":
+                target = t.value if t.value in allowed else None
+                break
+            if t.kind not in ("WORD", "MOTION") or t.text in STOP_WORDS:
+                break
+            if f.mode != "pre" and t.kind == "WORD" and t.text not in SIDE_ADJECTIVES:
+                break   # "... side by side that ..." is not a pre-modifier
+        if f.mode == "pre" and target is None:
+            target = next((t.value for t in nxt if t.kind == "PART" and t.value in allowed), None)
+        if target is None:
+            before = [t.value for t in parts if t.end <= f.start and t.value in allowed]
+            target = before[-1] if before else None
+        if target is None:
+            prev = [lab for lab in earlier if lab in allowed]
+            target = prev[-1] if prev else None
+        if target is None:
+            after = [t.value for t in parts if t.start >= f.end and t.value in allowed]
+            target = after[0] if after else None
+        if target is None or target == f.relation_to:
+            continue
+        if f.key == "relprev":
+            subject = [t for t in parts if t.end <= f.start and t.value == target]
+            other = [t.value for t in parts if subject and t.end <= subject[-1].start
+                     and t.value != target]
+            if other:
+                f = _Fact(f.values[0], [other[-1]], f.start, f.end, f.mode)
+            else:
+                f = _Fact("vpos", ["top" if f.values[0] == "above" else "bottom"], f.start,
+                          f.end, f.mode)
+        facts_of = spatial.setdefault(target, {})
+        if f.key in ("hinge", "opens"):
+            hinged.append(target)
+        if f.key in ("layout", "rows", "columns"):
+            facts_of[f.key] = f.values[0]
+        else:
+            facts_of[f.key] = sorted(set(facts_of.get(f.key, [])) | set(f.values))
+    return hinged
