@@ -4,8 +4,7 @@ Plain Python (torch / numpy / trimesh); never imports rclpy. Heavy submodules lo
 """
 from model.core import (TOKEN_DIM, ArticulatedObject, Joint, JointType, ObjectValidationError,
                         Part)
-
-__version__ = "0.1.0"
+from model.core.version import __version__
 
 __all__ = ["TOKEN_DIM", "ArticulatedObject", "Joint", "JointType", "ObjectValidationError",
            "Part", "generate", "__version__"]

@@ -24,7 +24,7 @@ def main(argv=None) -> int:
 
     from playwright.sync_api import sync_playwright
 
-    from model.export.viewer import serve_studio
+    from model.app.studio import serve_studio
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]

@@ -279,7 +279,7 @@ def test_checkpoint_round_trip_and_fp16_copy(trained, tmp_path):
 def test_trained_tiny_model_learns_the_toy_structure(trained, tmp_path):
     """Not a quality bar: 150 tiny steps must learn the category and joint types of its own
     training objects (exact part counts need longer training)."""
-    from model.articulation.evaluate import alignment_report
+    from model.metrics.text_alignment import alignment_report
     root, data, out = trained
     rep = alignment_report(str(out / "transformer.pt"), str(data), split="train", limit=12,
                            progress=False, temperature=0.0)

@@ -203,7 +203,7 @@ def test_image_pipeline_report_runs_images_through_the_whole_generator(tiny_set,
                                                                        tmp_path):
     """POR, validity and structure of image requests through Generator + export (the
     figures issue 8 asks for besides the decoding accuracy)."""
-    from model.imaging.evaluate import image_pipeline_report
+    from model.metrics.image_pipeline import image_pipeline_report
 
     ckpt = tiny_image_model
     rep = image_pipeline_report(str(tiny_set / "prepared"), str(tiny_set / "renders"),

@@ -4,19 +4,20 @@
         --sdf model/weights/sdf_small.pt --preset small --out runs/transformer_small \
         [--resume] [--ablation none|no_tpe|one_codebook|no_shape_prior] [--steps N] [--minutes M] \
         [--extra-train data/prepared/v1x ... [--extra-wordings N]]   # more training objects
-    artformer train transformer --eval runs/transformer_small/transformer.pt \
-        --data data/prepared/v1 --split test      # structure-alignment figure of a checkpoint
+
+The command's ``--eval CKPT`` (structure alignment of a checkpoint, scored with the metrics'
+prompt parser) is added above the metrics, in model.app.train_transformer.
 """
 from __future__ import annotations
 
 import argparse
-import json
 import logging
 import shlex
 from pathlib import Path
 
 
-def _parser() -> argparse.ArgumentParser:
+def parser() -> argparse.ArgumentParser:
+    """The training options of `artformer train transformer`."""
     from .config import ABLATIONS, PRESETS  # light: no torch network import
     ap = argparse.ArgumentParser(prog="artformer train transformer",
                                  description="Train the articulation transformer on a prepared "
@@ -44,16 +45,6 @@ def _parser() -> argparse.ArgumentParser:
     ap.add_argument("--text-encoder", help="'all-minilm-l6-v2' or a local transformers folder")
     ap.add_argument("--half", metavar="PATH", help="also write an fp16 copy of the final "
                                                    "checkpoint to PATH (the shipped file)")
-    ap.add_argument("--eval", metavar="CKPT", help="measure structure alignment of CKPT on --split")
-    ap.add_argument("--split", default="test")
-    ap.add_argument("--lengths", default="all",
-                    help="description lengths for --eval (comma list or 'all')")
-    ap.add_argument("--limit", type=int, default=0, help="--eval: at most this many objects")
-    ap.add_argument("--eval-seed", type=int, default=0)
-    ap.add_argument("--temperature", type=float, default=1.0)
-    ap.add_argument("--follow-plan", action="store_true",
-                    help="--eval: decode with END decisions held to the START plan head")
-    ap.add_argument("--json", metavar="PATH", help="--eval: write the report as JSON")
     return ap
 
 
@@ -100,22 +91,12 @@ def make_targets(prior: str, sdf: str, net_cfg):
     return PriorTargets(prior, sdf)
 
 
-def main(argv: list[str]) -> int:
+def main(argv: list[str], args: argparse.Namespace | None = None) -> int:
+    """Train; ``args``: ``argv`` already parsed by a parser that extends ``parser()``."""
     if argv[:2] == ["train", "transformer"]:
         argv = argv[2:]
-    args = _parser().parse_args(argv)
+    args = args or parser().parse_args(argv)
     logging.basicConfig(level=logging.INFO, format="%(asctime)s %(name)s: %(message)s")
-    if args.eval:
-        from .evaluate import alignment_report
-        lengths = None if args.lengths == "all" else args.lengths.split(",")
-        rep = alignment_report(args.eval, args.data, split=args.split, lengths=lengths,
-                               limit=args.limit, seed=args.eval_seed,
-                               temperature=args.temperature, follow_plan=args.follow_plan,
-                               progress=not args.no_progress)
-        print(json.dumps({k: v for k, v in rep.items() if k != "rows"}, indent=1))
-        if args.json:
-            Path(args.json).write_text(json.dumps(rep, indent=1))
-        return 0
     from .config import preset
     net_cfg, tc = preset(args.preset, args.ablation,
                          **training_overrides(args, text_encoder=args.text_encoder))

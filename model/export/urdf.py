@@ -103,8 +103,8 @@ def package_version() -> str:
         from importlib.metadata import version
         return version("artformer_ros")
     except Exception:  # not installed as a distribution: fall back to the source version
-        import model
-        return getattr(model, "__version__", "unknown")
+        from model.core.version import __version__
+        return __version__
 
 
 # -- physical properties --------------------------------------------------------------------

@@ -111,9 +111,6 @@ def _image_eval_args(ap: argparse.ArgumentParser) -> None:
     """The --eval options of `artformer train image`."""
     ap.add_argument("--eval", metavar="CKPT", help="category / structure accuracy of CKPT on --split")
     ap.add_argument("--split", default="test")
-    ap.add_argument("--pipeline", type=int, metavar="N", default=0,
-                    help="--eval: instead, run N test images through the whole generator "
-                         "(the --eval folder or 'shipped') and report POR, validity, structure")
     ap.add_argument("--limit", type=int, default=0)
     ap.add_argument("--eval-views", default="all", help="--eval: view indices (comma list) or 'all'")
     ap.add_argument("--eval-seed", type=int, default=0)
@@ -139,7 +136,8 @@ def _image_eval_args(ap: argparse.ArgumentParser) -> None:
                          "from further away (default 1: the render as it is)")
 
 
-def _image_parser():
+def image_parser():
+    """The parser of `artformer train image` (model.app.train_image adds --pipeline)."""
     from model.articulation.commands import add_training_args
     ap = argparse.ArgumentParser(
         prog="artformer train image",
@@ -186,20 +184,19 @@ def _image_parser():
     return ap
 
 
-def train_image_main(argv: list[str]) -> int:
-    """`artformer train image`."""
+def print_report(rep: dict, json_path) -> None:
+    """An evaluation report on stdout without its rows; all of it to ``json_path`` if given."""
+    print(json.dumps({k: v for k, v in rep.items() if k != "rows"}, indent=1))
+    if json_path:
+        Path(json_path).parent.mkdir(parents=True, exist_ok=True)
+        Path(json_path).write_text(json.dumps(rep, indent=1))
+
+
+def train_image_main(argv: list[str], args: argparse.Namespace | None = None) -> int:
+    """`artformer train image` (training, or --eval on held-out renders); ``args``: ``argv``
+    already parsed by a parser that extends ``image_parser()``."""
     import shlex
-    args = _image_parser().parse_args(argv)
-    if args.eval and args.pipeline:
-        from .evaluate import image_pipeline_report
-        rep = image_pipeline_report(args.data, args.renders, split=args.split, n=args.pipeline,
-                                    checkpoint=None if args.eval == "shipped" else args.eval,
-                                    seed=args.eval_seed, progress=not args.no_progress)
-        print(json.dumps({k: v for k, v in rep.items() if k != "rows"}, indent=1))
-        if args.json:
-            Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-            Path(args.json).write_text(json.dumps(rep, indent=1))
-        return 0
+    args = args or image_parser().parse_args(argv)
     if args.eval:
         from .evaluate import image_alignment_report
         if not 0 < args.farther <= 1:
@@ -213,10 +210,7 @@ def train_image_main(argv: list[str]) -> int:
                                      oracle_plan=args.oracle_plan, visibility=args.visibility,
                                      visible_px=args.visible_px, frame=args.frame,
                                      farther=args.farther, progress=not args.no_progress)
-        print(json.dumps({k: v for k, v in rep.items() if k != "rows"}, indent=1))
-        if args.json:
-            Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-            Path(args.json).write_text(json.dumps(rep, indent=1))
+        print_report(rep, args.json)
         return 0
     from model.articulation.commands import make_targets, training_overrides
     from model.encoders.image import check_image_size

@@ -1,12 +1,13 @@
 """Export benchmark on the example objects: prints numbers, asserts nothing.
 
-    python -m model.export.bench [--out DIR] [--repeats 3]
-    python -m model.export.bench --generated 12     # shipped model: boxes vs V-HACD
+    python -m model.app.export_bench [--out DIR] [--repeats 3]
+    python -m model.app.export_bench --generated 12     # shipped model: boxes vs V-HACD
 
 Per part: collision method chosen by "auto", pieces, seconds, volume excess of the pieces
 over the part, and their overlap with the other parts at rest, next to V-HACD and a single
 hull for comparison. Per object: export seconds, simulator check, MuJoCo contacts at rest and
-joint drift after 2 s of gravity, preview and 224×224 render_views seconds.
+joint drift after 2 s of gravity, preview and 224×224 render_views seconds. (In the app
+layer: ``--generated`` runs the pipeline on the bench prompts of model.metrics.)
 """
 from __future__ import annotations
 
@@ -33,7 +34,7 @@ def _timed(fn, repeats: int, cpu: bool = False):
 def _collision_rows(obj, repeats: int) -> list[str]:
     from model.core import meshops
 
-    from .collision import CollisionConfig, collision_pieces, vhacd_decompose
+    from model.export.collision import CollisionConfig, collision_pieces, vhacd_decompose
     rows = []
     for i, p in enumerate(obj.parts):
         others = [q.mesh for j, q in enumerate(obj.parts) if j != i]
@@ -52,7 +53,7 @@ def _collision_rows(obj, repeats: int) -> list[str]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m model.export.bench")
+    ap = argparse.ArgumentParser(prog="python -m model.app.export_bench")
     ap.add_argument("--out", default=None, help="export folder (default: a temp folder)")
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--generated", type=int, default=0, metavar="N",
@@ -65,9 +66,9 @@ def main(argv: list[str] | None = None) -> int:
 
     from model.core.example import example_objects
 
-    from .render import render_views, write_preview
-    from .simcheck import check_urdf
-    from .urdf import export_object
+    from model.export.render import render_views, write_preview
+    from model.export.simcheck import check_urdf
+    from model.export.urdf import export_object
 
     out = Path(args.out or tempfile.mkdtemp(prefix="artformer_export_bench_"))
     for name, obj in example_objects().items():
@@ -119,9 +120,9 @@ def _generated(n: int, out: str | None) -> int:
     from model.metrics.reference import BENCH_PATH, freeform_prompts
     from model.pipeline import GenerationConfig, Generator
 
-    from .collision import CollisionConfig
-    from .simcheck import check_urdf
-    from .urdf import export_object
+    from model.export.collision import CollisionConfig
+    from model.export.simcheck import check_urdf
+    from model.export.urdf import export_object
 
     root = Path(out or tempfile.mkdtemp(prefix="artformer_collision_bench_"))
     gen = Generator.load(GenerationConfig())
@@ -157,7 +158,7 @@ def _helper_mass_probe(urdf_path: str, obj) -> None:
     """Does each simulator accept a screw helper link of mass 0 (vs our 1e-6 kg)?"""
     from lxml import etree
 
-    from .simcheck import check_urdf
+    from model.export.simcheck import check_urdf
     tree = etree.parse(urdf_path)
     for link in tree.getroot().findall("link"):
         if link.get("name").endswith("_screw_helper"):
