@@ -13,7 +13,6 @@ floaters / simplification / carving / joint limits after); ``export`` is added b
 """
 from __future__ import annotations
 
-import hashlib
 import logging
 import os
 import time
@@ -27,76 +26,12 @@ from model.core import ArticulatedObject, ObjectValidationError
 from model.core.runtime import keep_heap_mapped, torch_threads
 from model.pipeline.api import (ExportResult, GeneratedObject, GenerationConfig,
                                 GenerationError)
+# checkpoint discovery and request checks, re-exported from their modules
+from model.pipeline.checkpoints import (STAGES, WEIGHTS_DIR, check_codebooks,  # noqa: F401
+                                        file_digest, find_checkpoints)
+from model.pipeline.validate import MAX_PROMPT_CHARS, check_prompt, validate_config  # noqa: F401
 
 log = logging.getLogger(__name__)
-
-WEIGHTS_DIR = Path(__file__).resolve().parent.parent / "weights"
-STAGES = ("transformer", "sdf", "prior", "image")
-MAX_PROMPT_CHARS = 2000
-
-
-def find_checkpoints(folder: Union[str, os.PathLike, None]) -> dict[str, Optional[Path]]:
-    """Stage → checkpoint file in a folder (``<stage>.pt`` or the one ``<stage>_*.pt``).
-
-    The image stage is optional; the other three must exist.
-    """
-    root = Path(folder) if folder else WEIGHTS_DIR
-    if not root.is_dir():
-        raise GenerationError(f"checkpoint folder {root} does not exist; pass the folder that "
-                              f"holds transformer*.pt, sdf*.pt and prior*.pt")
-    found: dict[str, Optional[Path]] = {}
-    for stage in STAGES:
-        exact = root / f"{stage}.pt"
-        cands = [exact] if exact.exists() else sorted(root.glob(f"{stage}_*.pt"))
-        if len(cands) > 1:
-            raise GenerationError(f"{root} holds several {stage} checkpoints "
-                                  f"({[c.name for c in cands]}); keep one or name it {stage}.pt")
-        found[stage] = cands[0] if cands else None
-    missing = [s for s in STAGES[:3] if found[s] is None]
-    if missing:
-        raise GenerationError(f"{root} has no checkpoint for {missing}; train them with "
-                              f"`artformer train ...` or use the shipped model (no --checkpoint)")
-    return found
-
-
-def check_codebooks(cfg, shape, ckpt: Path, prior: Path) -> None:
-    """A transformer's codebook logits P (text or image stage) must have the prior's layout
-    (C codebooks x N codes); the one_codebook ablation needs a prior trained with one codebook."""
-    if cfg.predict_z or shape.prior is None:
-        return
-    want = (int(shape.prior.cfg.n_codebooks), int(shape.prior.cfg.codebook_size))
-    have = (int(cfg.num_codebooks), int(cfg.codebook_size))
-    if have != want:
-        raise GenerationError(
-            f"{ckpt} predicts {have[0]} x {have[1]} codebook logits but the shape "
-            f"prior {prior} has {want[0]} x {want[1]} codebooks; put the prior it was "
-            f"trained with beside it (`artformer train prior --codebooks {have[0]} "
-            f"--codebook-size {have[1]}` for the one_codebook ablation)")
-
-
-def file_digest(path: Path, n: int = 12) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for chunk in iter(lambda: f.read(1 << 20), b""):
-            h.update(chunk)
-    return h.hexdigest()[:n]
-
-
-def check_prompt(text) -> str:
-    """Return the cleaned prompt or raise GenerationError saying what is wrong with it."""
-    if isinstance(text, bytes):
-        try:
-            text = text.decode("utf-8")
-        except UnicodeDecodeError as e:
-            raise GenerationError(f"prompt is not valid UTF-8 ({e.reason} at byte {e.start})") from None
-    if not isinstance(text, str):
-        raise GenerationError(f"prompt must be a string, got {type(text).__name__}")
-    clean = " ".join(text.split())
-    if not clean:
-        raise GenerationError("prompt is empty")
-    if len(clean) > MAX_PROMPT_CHARS:
-        raise GenerationError(f"prompt has {len(clean)} characters; the limit is {MAX_PROMPT_CHARS}")
-    return clean
 
 
 @dataclass
@@ -430,37 +365,6 @@ def part_resolution(size, cfg: GenerationConfig) -> int:
     return min(res, int(cfg.resolution))
 
 
-def validate_config(cfg: GenerationConfig) -> None:
-    """Raise GenerationError naming the first bad field of a GenerationConfig."""
-    checks = [
-        (8 <= cfg.resolution <= 256, f"resolution must be in [8, 256], got {cfg.resolution}"),
-        (1 <= cfg.steps <= 1000, f"steps must be in [1, 1000], got {cfg.steps}"),
-        (cfg.guidance >= 0, f"guidance must be >= 0, got {cfg.guidance}"),
-        (cfg.temperature > 0, f"temperature must be > 0, got {cfg.temperature}"),
-        (0 <= cfg.structure_temperature <= 10,
-         f"structure_temperature must be in [0, 10], got {cfg.structure_temperature}"),
-        (cfg.layout_sampling in ("never", "structure", "always"),
-         f"layout_sampling must be never|structure|always, got {cfg.layout_sampling!r}"),
-        (set(cfg.follow_plan) <= {"text", "image"},
-         f"follow_plan lists modalities 'text' / 'image', got {cfg.follow_plan!r}"),
-        (cfg.geometry in ("generate", "retrieve"), f"geometry must be generate|retrieve, got {cfg.geometry!r}"),
-        (cfg.mesh_format in ("obj", "stl", "glb"), f"mesh_format must be obj|stl|glb, got {cfg.mesh_format!r}"),
-        (cfg.collision in ("auto", "cells", "vhacd", "hull", "none"),
-         f"collision must be auto|cells|vhacd|hull|none, got {cfg.collision!r}"),
-        (cfg.device == "cpu", f"device {cfg.device!r} is not supported; this build runs on the CPU"),
-        (1 <= cfg.threads <= 64, f"threads must be in [1, 64], got {cfg.threads}"),
-        (1 <= cfg.token_threads <= 64, f"token_threads must be in [1, 64], got {cfg.token_threads}"),
-        (1 <= cfg.max_nodes <= 64, f"max_nodes must be in [1, 64], got {cfg.max_nodes}"),
-        (cfg.face_budget >= 0, f"face_budget must be >= 0, got {cfg.face_budget}"),
-        (cfg.mesh_cell >= 0, f"mesh_cell must be >= 0, got {cfg.mesh_cell}"),
-        (0 <= cfg.max_depth <= 16, f"max_depth must be in [0, 16], got {cfg.max_depth}"),
-        (0 <= cfg.max_children <= 64, f"max_children must be in [0, 64], got {cfg.max_children}"),
-    ]
-    for ok, msg in checks:
-        if not ok:
-            raise GenerationError(msg)
-
-
 def _object_name(category: str, seed: int) -> str:
     slug = "".join(c if c.isalnum() else "_" for c in (category or "object").lower()).strip("_")
     return f"{slug or 'object'}_s{seed}"
@@ -504,4 +408,3 @@ def generate_to_folder(text: Optional[str], out_dir: Union[str, os.PathLike], *,
 
 __all__ = ["Generator", "default_generator", "generate_to_folder", "find_checkpoints",
            "check_prompt", "validate_config"]
-
