@@ -68,7 +68,7 @@ def _load_shape(a, need_prior: bool):
     return ShapeModel.load(a.sdf, a.prior, need_prior=need_prior)
 
 
-def _eval(argv: list[str]) -> int:
+def _eval_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="artformer eval geometry",
                                 description="per-label quality of the shape prior on held-out "
                                             "parts: F-score@1 %, Chamfer (mm), volume IoU, "
@@ -101,7 +101,11 @@ def _eval(argv: list[str]) -> int:
                    help="instead: measure where thin walls are lost (resolution sweep, true SDF "
                         "meshed, decoder error vs distance, box vs iso frame, retrieval, "
                         "meshing remedies)")
-    a = p.parse_args(argv[2:])
+    return p
+
+
+def _eval(argv: list[str]) -> int:
+    a = _eval_parser().parse_args(argv[2:])
     for name in ("max_parts", "per_label", "labels", "samples_per_label", "worst"):
         if getattr(a, name) < 0:
             raise ValueError(f"--{name.replace('_', '-')} must be >= 0")
@@ -114,16 +118,7 @@ def _eval(argv: list[str]) -> int:
     torch.set_num_threads(a.threads)
     from . import evaluate as ev
     if a.diagnose:
-        shape = _load_shape(a, need_prior=True)
-        res = ev.diagnose(shape, a.data, split=a.split, per_label_cap=a.per_label or 6,
-                          max_parts=a.max_parts or None, seed=a.seed)
-        res["checkpoints"] = shape.info
-        text = json.dumps(res, indent=1)
-        print(text)
-        if a.json:
-            from model.data.format import atomic_write_bytes
-            atomic_write_bytes(a.json, text.encode())
-        return 0
+        return _diagnose(a)
     shape = _load_shape(a, need_prior=a.samples_per_label > 0)
     res = ev.evaluate(shape, a.data, split=a.split, max_parts=a.max_parts or None,
                       per_label_cap=a.per_label or None, resolution=a.resolution,
@@ -133,15 +128,7 @@ def _eval(argv: list[str]) -> int:
     res["checkpoints"] = shape.info
     res["command"] = " ".join(["artformer", *argv])
     if a.figures:
-        from pathlib import Path
-        fig = Path(a.figures)
-        fig.mkdir(parents=True, exist_ok=True)
-        if rows["reconstruction"] and a.worst:
-            ev.worst_sheet(fig / "geometry_worst_reconstructions.png", rows["reconstruction"],
-                           k=a.worst)
-        if rows["prior"]:
-            ev.samples_sheet(fig / "geometry_prior_samples.png", rows["prior"])
-        res["figures"] = str(fig)
+        res["figures"] = _eval_figures(a.figures, rows, a.worst)
     res["parts_rows"] = {k: ev._json_rows(v) for k, v in rows.items()}
     print(ev.format_table(res))
     r, s = res["reconstruction"], res.get("prior", {})
@@ -155,6 +142,35 @@ def _eval(argv: list[str]) -> int:
         from model.data.format import atomic_write_bytes
         atomic_write_bytes(a.json, json.dumps(res, indent=1, default=float).encode())
     return 0
+
+
+def _diagnose(a) -> int:
+    """`artformer eval geometry --diagnose`: the cause analysis, printed (and --json) as JSON."""
+    from .evaluate import diagnose
+    shape = _load_shape(a, need_prior=True)
+    res = diagnose(shape, a.data, split=a.split, per_label_cap=a.per_label or 6,
+                   max_parts=a.max_parts or None, seed=a.seed)
+    res["checkpoints"] = shape.info
+    text = json.dumps(res, indent=1)
+    print(text)
+    if a.json:
+        from model.data.format import atomic_write_bytes
+        atomic_write_bytes(a.json, text.encode())
+    return 0
+
+
+def _eval_figures(folder: str, rows: dict, worst: int) -> str:
+    """The worst-reconstruction and prior-sample sheets into ``folder``; returns its path."""
+    from pathlib import Path
+
+    from .evaluate import samples_sheet, worst_sheet
+    fig = Path(folder)
+    fig.mkdir(parents=True, exist_ok=True)
+    if rows["reconstruction"] and worst:
+        worst_sheet(fig / "geometry_worst_reconstructions.png", rows["reconstruction"], k=worst)
+    if rows["prior"]:
+        samples_sheet(fig / "geometry_prior_samples.png", rows["prior"])
+    return str(fig)
 
 
 def _bench(argv: list[str]) -> int:

@@ -167,13 +167,42 @@ def load_parts(root: str | Path, split: str, *, max_objects: int | None = None,
     ids = fmt.split_ids(root, split)
     if max_objects is not None:
         ids = ids[:max_objects]
-    pts, sdf, texts, oids, kidx, centers, scales, bcs, bss = [], [], [], [], [], [], [], [], []
     it = ids
     if progress:
         from tqdm import tqdm
         it = tqdm(ids, desc=f"load {split}", unit="obj")
+    col = _read_objects(root, it, rng, with_sdf=with_sdf, max_sdf=max_sdf, exact=exact)
+    if not col["points"]:
+        raise ValueError(f"{root}: split {split!r} has no objects")
+    texts = col["texts"]
+    vocab = sorted(set(texts))
+    lookup = {t: i for i, t in enumerate(vocab)}
+    out = dict(points=torch.cat(col["points"]),
+               sdf=torch.cat(col["sdf"]) if with_sdf else None, texts=texts,
+               object_ids=col["object_ids"], box_center=torch.cat(col["box_center"]),
+               box_scale=torch.cat(col["box_scale"]), part_index=col["part_index"],
+               center=np.concatenate(col["center"]), scale=np.concatenate(col["scale"]),
+               data_version=str(man.get("data_version", "")), root=str(root),
+               text_vocab=vocab, text_ids=torch.tensor([lookup[t] for t in texts]))
+    if cache is not None:
+        import io
+        buf = io.BytesIO()
+        torch.save(out, buf)
+        fmt.atomic_write_bytes(cache, buf.getvalue())
+    return PartSet(**out)
+
+
+def _read_objects(root, ids, rng: np.random.Generator, *, with_sdf: bool, max_sdf: int | None,
+                  exact: bool) -> dict[str, list]:
+    """The parts of objects ``ids``, as lists to concatenate: box-frame ``points``, ``sdf``,
+    ``box_center`` and ``box_scale`` (tensors of one part or one object each), the iso-cube
+    ``center`` and ``scale`` (arrays per object), and per part its ``texts``, ``object_ids``
+    and ``part_index``. Points and SDF samples per part are those of the first object
+    (``max_sdf`` caps the SDF samples)."""
+    col: dict[str, list] = {k: [] for k in ("points", "sdf", "box_center", "box_scale", "center",
+                                            "scale", "texts", "object_ids", "part_index")}
     P = S = None
-    for oid in it:
+    for oid in ids:
         rec = fmt.load_record(root, oid)
         arr = fmt.load_part_arrays(root, oid)
         K = arr["points"].shape[0]
@@ -186,50 +215,53 @@ def load_parts(root: str | Path, split: str, *, max_objects: int | None = None,
                 S = min(S, max_sdf)
         center = arr["center"].astype(np.float32).reshape(K, 3)
         scale = arr["scale"].astype(np.float32).reshape(K)
-        centers.append(center)
-        scales.append(scale)
-        mesh_dir = Path(root) / "meshes" / oid
-        if exact and with_sdf and mesh_dir.is_dir():
-            for p, d, c, s in _exact_object(mesh_dir, K, center, scale, P, S,
-                                            int(rng.integers(2**31))):
-                pts.append(torch.from_numpy(p).half().unsqueeze(0))
-                sdf.append(torch.from_numpy(d).half().unsqueeze(0))
-                bcs.append(torch.from_numpy(c).float().unsqueeze(0))
-                bss.append(torch.from_numpy(s).float().unsqueeze(0))
-        else:
-            if arr["points"].shape[1] != P:
-                raise ValueError(f"{root}: object {oid} has a different number of points")
-            p_iso = torch.from_numpy(arr["points"].astype(np.float32))   # (K, P, 3)
-            c, s = box_frame(p_iso)
-            bcs.append(c)
-            bss.append(s)
-            pts.append(((p_iso - c.unsqueeze(1)) * s.unsqueeze(1)).half())
-            if with_sdf:
-                nrm = torch.from_numpy(arr["normals"].astype(np.float32))
-                raw = arr["sdf"]
-                if raw.shape[1] > S:
-                    raw = raw[:, np.sort(rng.choice(raw.shape[1], S, replace=False))]
-                sdf.append(to_box_sdf(p_iso, nrm, torch.from_numpy(raw.astype(np.float32)),
-                                      c, s).half())
+        col["center"].append(center)
+        col["scale"].append(scale)
+        pts, sdf, bcs, bss = _object_samples(root, oid, arr, center, scale, P, S, rng,
+                                             exact=exact, with_sdf=with_sdf)
+        col["points"] += pts
+        col["sdf"] += sdf
+        col["box_center"] += bcs
+        col["box_scale"] += bss
         for k, lab in enumerate(rec.labels):
-            texts.append(label_text(rec.category, lab))
-            oids.append(oid)
-            kidx.append(k)
-    if not pts:
-        raise ValueError(f"{root}: split {split!r} has no objects")
-    vocab = sorted(set(texts))
-    lookup = {t: i for i, t in enumerate(vocab)}
-    out = dict(points=torch.cat(pts), sdf=torch.cat(sdf) if with_sdf else None, texts=texts,
-               object_ids=oids, box_center=torch.cat(bcs), box_scale=torch.cat(bss),
-               part_index=kidx, center=np.concatenate(centers), scale=np.concatenate(scales),
-               data_version=str(man.get("data_version", "")), root=str(root),
-               text_vocab=vocab, text_ids=torch.tensor([lookup[t] for t in texts]))
-    if cache is not None:
-        import io
-        buf = io.BytesIO()
-        torch.save(out, buf)
-        fmt.atomic_write_bytes(cache, buf.getvalue())
-    return PartSet(**out)
+            col["texts"].append(label_text(rec.category, lab))
+            col["object_ids"].append(oid)
+            col["part_index"].append(k)
+    return col
+
+
+def _object_samples(root, oid: str, arr: dict, center: np.ndarray, scale: np.ndarray, P: int,
+                    S: int, rng: np.random.Generator, *, exact: bool, with_sdf: bool
+                    ) -> tuple[list, list, list, list]:
+    """Box-frame points (.., P, 3), SDF samples (.., S, 4; none without ``with_sdf``), box
+    centres and stretches (.., 3) of one object's K parts, as lists of tensors: re-sampled
+    exactly from the prepared meshes (one tensor per part) when ``exact`` and the meshes are
+    there, else the stored iso-frame samples mapped (one tensor for the object)."""
+    mesh_dir = Path(root) / "meshes" / oid
+    pts, sdf, bcs, bss = [], [], [], []
+    if exact and with_sdf and mesh_dir.is_dir():
+        for p, d, c, s in _exact_object(mesh_dir, len(scale), center, scale, P, S,
+                                        int(rng.integers(2**31))):
+            pts.append(torch.from_numpy(p).half().unsqueeze(0))
+            sdf.append(torch.from_numpy(d).half().unsqueeze(0))
+            bcs.append(torch.from_numpy(c).float().unsqueeze(0))
+            bss.append(torch.from_numpy(s).float().unsqueeze(0))
+        return pts, sdf, bcs, bss
+    if arr["points"].shape[1] != P:
+        raise ValueError(f"{root}: object {oid} has a different number of points")
+    p_iso = torch.from_numpy(arr["points"].astype(np.float32))   # (K, P, 3)
+    c, s = box_frame(p_iso)
+    bcs.append(c)
+    bss.append(s)
+    pts.append(((p_iso - c.unsqueeze(1)) * s.unsqueeze(1)).half())
+    if with_sdf:
+        nrm = torch.from_numpy(arr["normals"].astype(np.float32))
+        raw = arr["sdf"]
+        if raw.shape[1] > S:
+            raw = raw[:, np.sort(rng.choice(raw.shape[1], S, replace=False))]
+        sdf.append(to_box_sdf(p_iso, nrm, torch.from_numpy(raw.astype(np.float32)),
+                              c, s).half())
+    return pts, sdf, bcs, bss
 
 
 def sample_batch(parts: PartSet, idx: torch.Tensor, n_points: int, n_queries: int,
