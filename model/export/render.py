@@ -151,6 +151,26 @@ def _rasterise(tris: np.ndarray, cols: np.ndarray, closed: np.ndarray, eye: np.n
     tbuf = np.full(H * W, -1, dtype=np.int64) if with_index else None
     if len(tris) == 0:
         return (img, tbuf.reshape(H, W)) if with_index else img
+    fwd, right, cam_up = _camera_axes(eye, target)
+    # per-triangle arithmetic in the triangles' precision (float32 for previews)
+    eye, fwd, right, cam_up = (a.astype(tris.dtype) for a in (eye, fwd, right, cam_up))
+    rel = tris - eye                                                 # (T, 3, 3)
+    x, y, z = rel @ right, rel @ cam_up, rel @ fwd                   # (T, 3) each
+    keep, shade = _cull_and_shade(tris, cols, closed, z, eye, opt)
+    kept = np.nonzero(keep)[0]                                       # (K,) input triangle ids
+    x, y, z = x[keep], y[keep], z[keep]
+    f = 0.5 * H / math.tan(math.radians(fov) / 2.0)
+    u = f * x / z + W / 2.0                                          # (K, 3) pixel coords
+    v = H / 2.0 - f * y / z
+    cbuf = img.reshape(-1, 3)
+    _draw(u, v, z, shade, kept, cbuf, tbuf, H, W)
+    img = np.clip(cbuf.reshape(H, W, 3), 0.0, 1.0)
+    return (img, tbuf.reshape(H, W)) if with_index else img
+
+
+def _camera_axes(eye: np.ndarray, target: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Unit forward, right and up vectors (3,) of a camera at ``eye`` looking at ``target``
+    with world +z up."""
     fwd = target - eye
     fwd /= np.linalg.norm(fwd)
     up = np.array([0.0, 0.0, 1.0])
@@ -159,10 +179,14 @@ def _rasterise(tris: np.ndarray, cols: np.ndarray, closed: np.ndarray, eye: np.n
         right = np.array([0.0, -1.0, 0.0])
     right /= np.linalg.norm(right)
     cam_up = np.cross(right, fwd)
-    # per-triangle arithmetic in the triangles' precision (float32 for previews)
-    eye, fwd, right, cam_up = (a.astype(tris.dtype) for a in (eye, fwd, right, cam_up))
-    rel = tris - eye                                                 # (T, 3, 3)
-    x, y, z = rel @ right, rel @ cam_up, rel @ fwd                   # (T, 3) each
+    return fwd, right, cam_up
+
+
+def _cull_and_shade(tris: np.ndarray, cols: np.ndarray, closed: np.ndarray, z: np.ndarray,
+                    eye: np.ndarray, opt: RenderOptions) -> tuple[np.ndarray, np.ndarray]:
+    """Which of the triangles (T, 3, 3) are drawn (T,) bool: in front of the camera (view
+    depths ``z`` (T, 3)), not degenerate, not the back face of a closed surface; and the
+    flat colour (K, 3) of each drawn one."""
     near = 1e-3
     keep = np.all(z > near, axis=1)
     # Shading per triangle (world frame, two-sided).
@@ -171,7 +195,6 @@ def _rasterise(tris: np.ndarray, cols: np.ndarray, closed: np.ndarray, eye: np.n
     keep &= nn > 1e-15
     # Back faces of closed surfaces are hidden anyway: culling them halves the raster work.
     keep &= ~(closed & (np.sum(n * (eye - tris.mean(axis=1)), axis=1) < 0))
-    kept = np.nonzero(keep)[0]                                       # (K,) input triangle ids
     tris_c = (tris[keep].mean(axis=1))                               # (K, 3)
     n = n[keep] / nn[keep, None]
     view = eye - tris_c
@@ -184,10 +207,14 @@ def _rasterise(tris: np.ndarray, cols: np.ndarray, closed: np.ndarray, eye: np.n
     spec = np.clip(np.sum(n * half, axis=1), 0.0, 1.0) ** opt.shininess
     shade = (cols[keep] * (opt.ambient + opt.diffuse * lam)[:, None]
              + opt.specular * spec[:, None])                         # (K, 3)
-    x, y, z = x[keep], y[keep], z[keep]
-    f = 0.5 * H / math.tan(math.radians(fov) / 2.0)
-    u = f * x / z + W / 2.0                                          # (K, 3) pixel coords
-    v = H / 2.0 - f * y / z
+    return keep, shade
+
+
+def _draw(u: np.ndarray, v: np.ndarray, z: np.ndarray, shade: np.ndarray, kept: np.ndarray,
+          cbuf: np.ndarray, tbuf: Optional[np.ndarray], H: int, W: int) -> None:
+    """Z-buffer the K projected triangles (pixel coords ``u``, ``v`` and view depths ``z``,
+    (K, 3) each) into ``cbuf`` (H * W, 3) with their colours ``shade`` (K, 3), and into
+    ``tbuf`` (H * W,) when given, their input triangle ids ``kept`` (K,)."""
     area = (u[:, 1] - u[:, 0]) * (v[:, 2] - v[:, 0]) - (u[:, 2] - u[:, 0]) * (v[:, 1] - v[:, 0])
     ok = np.abs(area) > 1e-12
     x0 = np.clip(np.floor(u.min(axis=1) - 0.5), 0, W).astype(np.int64)
@@ -197,7 +224,6 @@ def _rasterise(tris: np.ndarray, cols: np.ndarray, closed: np.ndarray, eye: np.n
     bw, bh = x1 - x0 + 1, y1 - y0 + 1
     cnt = np.where(ok & (bw > 0) & (bh > 0), bw * bh, 0)
     zbuf = np.full(H * W, np.inf)
-    cbuf = img.reshape(-1, 3)
     invz = 1.0 / z                                                   # (K, 3)
     start = 0
     K = len(cnt)
@@ -227,11 +253,9 @@ def _rasterise(tris: np.ndarray, cols: np.ndarray, closed: np.ndarray, eye: np.n
             np.minimum.at(zbuf, pid, depth)
             win = depth == zbuf[pid]
             cbuf[pid[win]] = shade[ti[win]]
-            if with_index:
+            if tbuf is not None:
                 tbuf[pid[win]] = kept[ti[win]]
         start = stop
-    img = np.clip(cbuf.reshape(H, W, 3), 0.0, 1.0)
-    return (img, tbuf.reshape(H, W)) if with_index else img
 
 
 def _camera(obj, ratios: Sequence[float], geometry: list, options: RenderOptions, H: int, W: int
