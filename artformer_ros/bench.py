@@ -72,51 +72,17 @@ def run(backend: str, n: int, params: dict, timeout: float, log_path: Optional[s
     ctx = rclpy.Context()
     rclpy.init(context=ctx)
     client = GeneratorClient(context=ctx)
-    rss: list[int] = []
-
-    def sample_memory() -> None:
-        try:
-            rss.append(proc_memory_kb(proc.pid)["VmRSS"])
-        except (FileNotFoundError, KeyError, ProcessLookupError):
-            pass
-
-    def wait(pred, limit) -> bool:
-        end = time.monotonic() + limit
-        while not pred():
-            if time.monotonic() > end or proc.poll() is not None:
-                return False
-            client.spin_until(lambda: False, 0.05)
-            sample_memory()
-        return True
-
+    watch = _NodeWatch(client, proc, proc_memory_kb)
     try:
         if not client.wait_ready(timeout):
             raise RuntimeError(f"node not ready (waited up to {timeout:.0f} s): {client.status}")
         ready_s = time.monotonic() - t_start
-        sample_memory()
-        ready_rss_mb = rss[-1] / 1024.0
-        rows = []
-        for i in range(n + 1):   # request 0 is the warm-up
-            prompt = PROMPTS[i % len(PROMPTS)]
-            n_desc = len(client.descriptions)
-            t0 = time.monotonic()
-            rid = client.send_text(prompt, request_id=f"bench{i}", seed=i)
-            if not wait(lambda: rid in client.results, timeout):
-                raise RuntimeError(f"no answer to request {i} within {timeout} s")
-            res = client.results[rid]
-            if res["status"] != "done":
-                raise RuntimeError(f"request {i} failed: {res['message']}")
-            if not wait(lambda: len(client.descriptions) > n_desc, 10):
-                raise RuntimeError(f"request {i}: no URDF on robot_description")
-            t_urdf = client.descriptions[n_desc][0]
-            sample_memory()
-            rows.append({"i": i, "prompt": prompt, "warmup": i == 0, "rss_mb": rss[-1] / 1024.0,
-                         "urdf_latency_s": t_urdf - t0, "result_latency_s": res["_received"] - t0,
-                         "node_timings": res["timings"],
-                         "parts": len(res["mesh_paths"])})
-        sample_memory()
+        watch.sample_memory()
+        ready_rss_mb = watch.rss[-1] / 1024.0
+        # request 0 is the warm-up
+        rows = [_timed_request(client, watch, i, timeout) for i in range(n + 1)]
+        watch.sample_memory()
         mem = proc_memory_kb(proc.pid)
-        rc = None
         client.close()
         rc = stop_node(proc, 60)
     finally:
@@ -124,31 +90,87 @@ def run(backend: str, n: int, params: dict, timeout: float, log_path: Optional[s
             proc.kill()
         rclpy.try_shutdown(context=ctx)
     timed = [r for r in rows if not r["warmup"]]
+    return {"backend": backend, "params": node_params, "n": len(timed), "ready_s": ready_s,
+            **_latencies(timed), **_memory(timed, ready_rss_mb, mem, watch.rss),
+            "node_exit_code": rc,
+            "machine": {"cpus": os.cpu_count(), "platform": platform.platform(),
+                        "python": platform.python_version()},
+            "requests": rows}
+
+
+class _NodeWatch:
+    """Spins the client while it waits on the node process, sampling the node's resident
+    memory on every turn (the peak between samples is the kernel's VmHWM)."""
+
+    def __init__(self, client, proc, memory_kb):
+        self.client, self.proc, self._memory_kb = client, proc, memory_kb
+        self.rss: list[int] = []                 # VmRSS samples (kB)
+
+    def sample_memory(self) -> None:
+        try:
+            self.rss.append(self._memory_kb(self.proc.pid)["VmRSS"])
+        except (FileNotFoundError, KeyError, ProcessLookupError):
+            pass
+
+    def wait(self, pred, limit) -> bool:
+        end = time.monotonic() + limit
+        while not pred():
+            if time.monotonic() > end or self.proc.poll() is not None:
+                return False
+            self.client.spin_until(lambda: False, 0.05)
+            self.sample_memory()
+        return True
+
+
+def _timed_request(client, watch: _NodeWatch, i: int, timeout: float) -> dict:
+    """Send text request ``i`` and wait for its result and its URDF on robot_description:
+    one row of the report (latencies from publishing the request)."""
+    prompt = PROMPTS[i % len(PROMPTS)]
+    n_desc = len(client.descriptions)
+    t0 = time.monotonic()
+    rid = client.send_text(prompt, request_id=f"bench{i}", seed=i)
+    if not watch.wait(lambda: rid in client.results, timeout):
+        raise RuntimeError(f"no answer to request {i} within {timeout} s")
+    res = client.results[rid]
+    if res["status"] != "done":
+        raise RuntimeError(f"request {i} failed: {res['message']}")
+    if not watch.wait(lambda: len(client.descriptions) > n_desc, 10):
+        raise RuntimeError(f"request {i}: no URDF on robot_description")
+    t_urdf = client.descriptions[n_desc][0]
+    watch.sample_memory()
+    return {"i": i, "prompt": prompt, "warmup": i == 0, "rss_mb": watch.rss[-1] / 1024.0,
+            "urdf_latency_s": t_urdf - t0, "result_latency_s": res["_received"] - t0,
+            "node_timings": res["timings"],
+            "parts": len(res["mesh_paths"])}
+
+
+def _latencies(timed: list[dict]) -> dict:
+    """Latency and node-stage statistics (s) of the timed (not warm-up) requests' rows."""
     lat = [r["urdf_latency_s"] for r in timed]
     res_lat = [r["result_latency_s"] for r in timed]
     gen = [r["node_timings"]["generate"] for r in timed]
     exp = [r["node_timings"]["export"] for r in timed]
     return {
-        "backend": backend, "params": node_params, "n": len(timed),
-        "ready_s": ready_s,
         "urdf_latency_s": {"median": statistics.median(lat), "p95": percentile(lat, 95),
                            "mean": statistics.fmean(lat), "min": min(lat), "max": max(lat)},
         "result_latency_s": {"median": statistics.median(res_lat),
                              "p95": percentile(res_lat, 95)},
         "node_generate_s": {"median": statistics.median(gen), "p95": percentile(gen, 95)},
         "node_export_s": {"median": statistics.median(exp), "p95": percentile(exp, 95)},
-        "parts": {"median": statistics.median(r["parts"] for r in timed)},
+        "parts": {"median": statistics.median(r["parts"] for r in timed)}}
+
+
+def _memory(timed: list[dict], ready_rss_mb: float, mem: dict, rss: list[int]) -> dict:
+    """The node's resident memory (MB): when ready, after the first and the last timed
+    request, the peak (VmHWM), the largest sample and at the end (``mem``: its /proc
+    status after the last request)."""
+    return {
         "ready_rss_mb": ready_rss_mb,
         "rss_after_first_timed_mb": timed[0]["rss_mb"],
         "rss_after_last_timed_mb": timed[-1]["rss_mb"],
         "peak_rss_mb": mem["VmHWM"] / 1024.0,
         "max_sampled_rss_mb": max(rss) / 1024.0 if rss else None,
-        "final_rss_mb": mem["VmRSS"] / 1024.0,
-        "node_exit_code": rc,
-        "machine": {"cpus": os.cpu_count(), "platform": platform.platform(),
-                    "python": platform.python_version()},
-        "requests": rows,
-    }
+        "final_rss_mb": mem["VmRSS"] / 1024.0}
 
 
 def main(argv: Optional[list[str]] = None) -> int:
