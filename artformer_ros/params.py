@@ -49,6 +49,9 @@ PARAMS: tuple[ParamSpec, ...] = (
               "paths) or a 'package://<pkg>/<path>' prefix that replaces the output folder"),
     ParamSpec("refine", True, "layout + mesh refinement of each generated object before "
               "export (GenerationConfig.refine)", read_only=True),
+    ParamSpec("prompt_structure", True, "hold a text request's decoding to the part counts, "
+              "joint types and hinge sides its text states outright (GenerationConfig."
+              "prompt_structure); false = the network's own reading", read_only=True),
     ParamSpec("frame_images", True, "crop an image request with a plain background around its "
               "object first, as the training renders frame it", read_only=True),
     ParamSpec("device", "cpu", "torch device: cpu, cuda or cuda:N", read_only=True),
@@ -132,6 +135,7 @@ class NodeSettings:
     preview: bool = True
     mesh_uri: str = "file"
     refine: bool = True
+    prompt_structure: bool = True
     frame_images: bool = True
     device: str = "cpu"
     threads: int = 2
@@ -170,4 +174,4 @@ class NodeSettings:
                                 steps=self.steps, guidance=self.guidance,
                                 mesh_format=self.mesh_format, device=self.device,
                                 threads=self.threads, frame_images=self.frame_images,
-                                refine=self.refine)
+                                refine=self.refine, prompt_structure=self.prompt_structure)

@@ -10,7 +10,7 @@ import torch
 
 from model.articulation.decode import ArticulationModel
 from model.metrics.alignment import GeneratedStructure, check_alignment
-from model.metrics.prompt_parse import parse_prompt
+from model.data.prompt_parse import parse_prompt
 
 SHIPPED = "model/weights/transformer_small.pt"
 

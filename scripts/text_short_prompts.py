@@ -13,7 +13,7 @@ from model.articulation.decode import ArticulationModel
 from model.data import format as fmt
 from model.data.vocab import CATEGORY_SYNONYMS, number_word, plural
 from model.metrics.alignment import GeneratedStructure, check_alignment
-from model.metrics.prompt_parse import parse_prompt
+from model.data.prompt_parse import parse_prompt
 
 
 def short_prompts(root: str, split: str) -> list[str]:

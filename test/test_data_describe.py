@@ -165,7 +165,7 @@ def test_arrangement_matches_the_generator_cells(spatial_objects):
 def test_description_phrases_are_true(spatial_objects):
     """What the descriptions say, read back by the prompt parser, checked against the raw
     object (part centres, the generator's hinge sides and cells), not against the summary."""
-    from model.metrics.prompt_parse import parse_prompt
+    from model.data.prompt_parse import parse_prompt
     seen: set = set()
     for k, obj in enumerate(spatial_objects):
         body = obj.parts[obj.root]

@@ -128,18 +128,22 @@ def test_dropout_sampling_keeps_an_asked_structure(am):
 
 
 def test_generator_samples_layouts_when_a_structure_is_forced_only():
-    """layout_sampling 'structure' (default): seeds vary the layout of a forced structure;
-    free text decodes as before (its alignment is what the plain decoding measures)."""
+    """layout_sampling 'structure' (default): seeds vary the layout of a forced structure,
+    asked for or stated by the prompt; free text decodes as before (its alignment is what
+    the plain decoding measures)."""
     from model.pipeline.api import GenerationConfig, GenerationError
     from model.pipeline.generator import Generator, validate_config
     with pytest.raises(GenerationError, match="layout_sampling"):
         validate_config(GenerationConfig(layout_sampling="sometimes"))
-    gen = Generator.load(GenerationConfig())
+    gen = Generator.load(GenerationConfig(prompt_structure=False))
     keys = lambda trees: {layout_key(t.labels, t.parents, t.joint_types, t.tokens) for t in trees}
     free, *_ = gen.decode_trees("a wardrobe with two doors", seed=0, samples=3)
     forced, *_ = gen.decode_trees("a wardrobe with two doors", seed=0, samples=3,
                                   structure={"door": 2})
     assert len(keys(free)) == 1 and len(keys(forced)) == 3
+    gen.config.prompt_structure = True      # the prompt's "two doors" is held: sampled too
+    assert len(keys(gen.decode_trees("a wardrobe with two doors", seed=0, samples=3)[0])) == 3
+    gen.config.prompt_structure = False
     gen.config.layout_sampling = "always"
     assert len(keys(gen.decode_trees("a wardrobe with two doors", seed=0, samples=3)[0])) == 3
     gen.config.layout_sampling = "never"

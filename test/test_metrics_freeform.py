@@ -9,7 +9,7 @@ from model.core import ArticulatedObject, Joint, JointType, Part
 from model.data import vocab
 from model.metrics.alignment import GeneratedStructure, alignment_of, check_alignment, summarise
 from model.metrics.evaluate import freeform_breakdown, freeform_table, part_bucket
-from model.metrics.prompt_parse import (ExpectedStructure, parse_prompt,
+from model.data.prompt_parse import (ExpectedStructure, parse_prompt,
                                         read_annotated_prompts)
 
 ITEMS = read_annotated_prompts()

@@ -6,7 +6,7 @@ import pytest
 from model.core import ArticulatedObject, Joint, JointType, Part
 from model.metrics.alignment import (GeneratedStructure, alignment_of, check_alignment,
                                      summarise)
-from model.metrics.prompt_parse import parse_prompt
+from model.data.prompt_parse import parse_prompt
 
 CASES = [
     # (prompt, category, exact counts, lower bounds, joint types)

@@ -55,6 +55,8 @@ class DecodedTree:
     log_prob: float = 0.0
     plan_logits: Optional[np.ndarray] = None
     hinges: Optional[list] = None      # per node: the hinge side a structure asked for, or None
+    structure: Optional[dict] = None   # the structure decoding was held to (asked for, or
+                                       # stated by the prompt: GenerationConfig.prompt_structure)
 
     @property
     def num_nodes(self) -> int:

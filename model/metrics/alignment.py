@@ -1,6 +1,6 @@
 """Alignment (DESIGN §7): does the generated object have the structure the prompt asks for?
 
-The structure asked for comes from :func:`model.metrics.prompt_parse.parse_prompt` (category,
+The structure asked for comes from :func:`model.data.prompt_parse.parse_prompt` (category,
 exact counts / lower bounds per part kind, acceptable joint types per part kind, spatial facts)
 or from the free-form set's hand-written annotation. The structure generated is read from the
 object's part labels, joint types and category, and its spatial facts from its boxes and joints
@@ -19,7 +19,7 @@ from typing import Iterable, Sequence
 
 from model.core import ArticulatedObject, JointType
 
-from .prompt_parse import SPATIAL_KINDS, ExpectedStructure, parse_prompt
+from model.data.prompt_parse import SPATIAL_KINDS, ExpectedStructure, parse_prompt
 
 SPATIAL_KIND_NAMES = ("hinge", "opening", "arrangement", "position")
 

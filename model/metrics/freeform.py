@@ -26,7 +26,7 @@ def part_bucket(n: int) -> str:
 
 def _annotations(path) -> list:
     """(prompt, ExpectedStructure) of an annotated free-form file; [] when it has none."""
-    from .prompt_parse import read_annotated_prompts
+    from model.data.prompt_parse import read_annotated_prompts
     try:
         return read_annotated_prompts(path)
     except ValueError:
@@ -101,7 +101,7 @@ def freeform_alignment(cfg: FreeformConfig) -> dict:
     from model.pipeline.api import GenerationConfig
     from model.pipeline.checkpoints import find_checkpoints
 
-    from .prompt_parse import read_annotated_prompts
+    from model.data.prompt_parse import read_annotated_prompts
 
     t0 = time.perf_counter()
     items = read_annotated_prompts(cfg.prompts_file)

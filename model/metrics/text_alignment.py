@@ -17,7 +17,7 @@ from model.articulation.evaluate import compare, record_structure
 from model.data import format as fmt
 
 from .alignment import GeneratedStructure, check_alignment
-from .prompt_parse import parse_prompt
+from model.data.prompt_parse import parse_prompt
 
 
 def alignment_report(ckpt: str, data_root: str, *, split: str = "test",

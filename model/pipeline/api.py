@@ -37,6 +37,11 @@ class GenerationConfig:
                                        # of one structure; "structure" = only when a structure
                                        # is forced (free text: it lowers alignment 0.815 ->
                                        # 0.79; docs/structure.md, "Diversity")
+    prompt_structure: bool = True      # hold text decoding to the part counts, joint types
+                                       # and hinge sides the prompt states outright, read by
+                                       # the rule-based prompt parser (prompt_structure.py;
+                                       # docs/structure.md); parts it leaves open stay the
+                                       # network's choice
     follow_plan: tuple = ("text",)     # modalities whose END decisions are held to a plan:
                                        # text to the START plan head (decode.py), an image to
                                        # its model's count head if it has one (counts.py).

@@ -27,6 +27,9 @@ def _model_args(p: argparse.ArgumentParser) -> None:
                    default=("text",),
                    help="decode END from the END head alone (the paper's decoding), without "
                         "holding it to the START plan head")
+    p.add_argument("--no-prompt-structure", dest="prompt_structure", action="store_false",
+                   help="decode a text with the network's own reading of it, without holding "
+                        "the part counts, joint types and hinge sides the text states")
     p.add_argument("--no-frame", dest="frame_images", action="store_false",
                    help="read an --image as it is, without cropping a plain background around "
                         "the object first")
@@ -56,6 +59,7 @@ def _config(a):
                             collision=a.collision, threads=a.threads,
                             structure_temperature=a.structure_temperature,
                             follow_plan=a.follow_plan, refine=a.refine,
+                            prompt_structure=getattr(a, "prompt_structure", True),
                             face_budget=a.face_budget,
                             frame_images=getattr(a, "frame_images", True))
 

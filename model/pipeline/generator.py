@@ -127,6 +127,8 @@ class Generator:
             obj.metadata.update(prompt=prompt, seed=seed + i, modality=modality)
             if spec is not None:
                 obj.metadata["structure"] = spec.to_dict()
+            elif tree.structure is not None:      # the parts the prompt states, held
+                obj.metadata["prompt_structure"] = tree.structure
             results.append(GeneratedObject(obj=obj, prompt=prompt, seed=seed + i, timings=tim))
         return results
 
@@ -177,6 +179,8 @@ class Generator:
                                                   max_children=cfg.max_children)
             except ValueError as e:
                 raise GenerationError(str(e)) from None
+        elif modality == "text" and keep is None and cfg.prompt_structure:
+            spec, splan = self._stated_structure(prompt, cond, mask, seed)
 
         t = time.perf_counter()
         S = int(samples)
@@ -196,7 +200,34 @@ class Generator:
                                    dropout_sampling=cfg.layout_sampling == "always" or (
                                        cfg.layout_sampling == "structure" and splan is not None))
         timings["decoding"] = (time.perf_counter() - t) / S
+        for tree in trees:
+            tree.structure = None if spec is None else parse_structure(spec).to_dict()
         return trees, prompt, modality, timings
+
+    def _stated_structure(self, prompt: str, cond, mask, seed: int):
+        """The structure a text prompt states outright (model.pipeline.prompt_structure), as
+        (structure dict, StructurePlan), or (None, None) when it states no part count or none
+        this model can hold. A prompt that names no category takes the one the network reads
+        in it (a free decoding of the first sample)."""
+        from model.data.prompt_parse import parse_prompt
+        from model.pipeline.prompt_structure import resolve_prompt_structure, stated_counts
+
+        expected = parse_prompt(prompt)
+        if not stated_counts(expected):
+            return None, None
+        cfg, am = self.config, self.articulation
+        cats = sorted(set(am.table_categories))
+        if expected.category in cats:
+            order = [expected.category]
+        else:
+            with torch_threads(cfg.token_threads):
+                [free] = am.decode(cond, mask, seed=seed, max_nodes=cfg.max_nodes,
+                                   max_depth=cfg.max_depth, max_children=cfg.max_children,
+                                   modality="text", temperature=cfg.structure_temperature,
+                                   follow_plan="text" in cfg.follow_plan)
+            order = [free.category] + [c for c in cats if c != free.category]
+        return resolve_prompt_structure(am, expected, order, max_nodes=cfg.max_nodes,
+                                        max_children=cfg.max_children)
 
     def _geometry(self, tree, gen, timings: dict, keep: Optional[ArticulatedObject]) -> ArticulatedObject:
         """Latents for every new part in one batch, meshes fitted to the predicted boxes."""

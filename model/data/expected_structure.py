@@ -124,7 +124,7 @@ def read_annotated_prompts(path=None) -> list[tuple[str, ExpectedStructure]]:
     shipped ``prompts_freeform.txt``. A prompt without a structure line, or a structure line
     without a prompt, is a ValueError naming the line."""
     from pathlib import Path
-    path = Path(path) if path else Path(__file__).with_name("prompts_freeform.txt")
+    path = Path(path) if path else Path(__file__).parents[1] / "metrics" / "prompts_freeform.txt"
     out: list[tuple[str, ExpectedStructure]] = []
     pending: tuple[int, str] | None = None
     for no, raw in enumerate(path.read_text().splitlines(), 1):

@@ -1,0 +1,340 @@
+"""Text prompt → the structure it asks for (category, part counts, joint types).
+
+Used by the alignment metric (DESIGN §7) on the dataset's template descriptions *and* on
+free-form prompts no template wrote, and by generation to hold decoding to the parts a prompt
+states (``model.pipeline.prompt_structure``). Rule-based on the vocabulary of ``model.data.vocab``
+(categories, part synonyms and plurals, motion phrases) plus the extra wordings below.
+
+What it understands
+-------------------
+* quantities: digits, number words ("three", "a", "a single"), "a pair of", "double"/"twin",
+  "two pairs of", compounds ("a three-drawer dresser"), "no"/"without" (count 0);
+  "both", "several", bare plurals and definite mentions give lower bounds only.
+* distribution: "each drawer has a handle", "two doors, each with a knob",
+  "a handle on every drawer", "one knob per burner" → counts multiplied.
+* lists with sides: "a left door and a right door" → 2 doors; an appositive after a counted
+  plural ("two doors, a left door and a right door") is not counted twice.
+* motion: adjectives ("sliding drawers", "hinged lid") and clauses ("the drawers slide out",
+  "a door hinged on the left", "the cap screws off") attach to the nearest part mention;
+  generic rotation words ("rotates", "turns", "rotating") accept revolute or continuous.
+
+Example::
+
+    >>> parse_prompt("A dresser with three sliding drawers, each with a handle").to_json()
+    {'category': 'StorageFurniture', 'counts': {'drawer': 3, 'handle': 3},
+     'min_counts': {}, 'joint_types': {'drawer': ['prismatic']}}
+
+Modules: the words and the tokenizer in :mod:`model.metrics.prompt_lexicon`, spatial phrases
+in :mod:`model.metrics.prompt_spatial`, ``ExpectedStructure`` and the annotated prompt file
+in :mod:`model.metrics.expected_structure` (their public names are importable from here
+too); here, per sentence, the part mentions with their quantifiers and motions, then the
+counts.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from model.data import vocab
+
+# the vocabulary tables, spatial patterns and ExpectedStructure lived in this module: their
+# public names stay importable from it
+from .expected_structure import (SIDES, SPATIAL_KEYS, SPATIAL_KINDS,  # noqa: F401
+                                 ExpectedStructure, read_annotated_prompts)
+from .prompt_lexicon import (DEFINITE, DISTRIBUTIVE, EXACT_NUMBER_PHRASES,  # noqa: F401
+                             EXTRA_CATEGORY, EXTRA_MOTION, EXTRA_PART, GENERIC_ROTATION,
+                             LOWER_BOUND_WORDS, REVOLUTE_OR_CONTINUOUS, SIDE_ADJECTIVES,
+                             STOP_WORDS, ZERO_WORDS, _motion_in_phrase, _sentences, _Tok,
+                             _tokenize)
+from .prompt_spatial import ARRANGED, HINGED, _attach, _rewrite_counts, _spatial_facts  # noqa: F401
+
+
+# --------------------------------------------------------------------------------------------
+# part mentions
+# --------------------------------------------------------------------------------------------
+@dataclass
+class _Mention:
+    label: str
+    sent: int
+    pos: int
+    plural: bool
+    exact: int | None = None       # exact count contributed
+    lower: int | None = None       # lower bound contributed
+    zero: bool = False
+    side: bool = False             # a side adjective before the noun ("a left door")
+    dist_of: str | None = None     # distributive: multiply by the count of this label
+    dist_head: bool = False        # the part a distributive word quantifies ("each drawer")
+    single: bool = False           # "the door", "its lid", "porthole door," (one, if nothing
+                                   # else counts this part kind)
+
+
+def _scan_quantifier(toks: list[_Tok], k: int, m: _Mention, motions: list) -> None:
+    """Walk back from the part noun at k over adjectives to its quantifier."""
+    j, adjectives = k - 1, 0
+    mult = 1
+    while j >= 0 and adjectives <= 4:
+        t = toks[j]
+        if t.kind == "WORD":
+            if t.text in STOP_WORDS:
+                break
+            if t.text in SIDE_ADJECTIVES:
+                m.side = True
+            adjectives += 1
+        elif t.kind == "MOTION":
+            motions.append((t.value, k))
+            adjectives += 1
+        elif t.kind == "MULT":
+            mult *= int(t.value)
+            if j == 0 or toks[j - 1].kind != "NUM":   # "pairs of doors": at least two pairs
+                m.lower = 2 * mult
+                return
+        elif t.kind == "NUM":
+            m.exact = int(t.value) * mult
+            return
+        elif t.kind == "ZERO":
+            m.zero = True
+            return
+        elif t.kind == "LOWER":
+            m.lower = int(t.value)
+            return
+        elif t.kind in ("DET", "DIST"):
+            m.lower = 1
+            m.dist_head = t.kind == "DIST" and t.text != "both with"
+            m.single = t.kind == "DET" and not m.plural and t.text not in ("all", "any")
+            return
+        else:   # PUNCT, PART, CAT end the noun phrase
+            break
+        j -= 1
+    m.lower = 2 if m.plural else 1
+    m.single = not m.plural
+
+
+def _distributive_target(toks: list[_Tok], k: int) -> str | None:
+    """Label whose count multiplies the part at k, if a distributive word governs it."""
+    # after: "<Y> on each <X>", "<Y> per <X>" (within 3 tokens)
+    for j in range(k + 1, min(len(toks), k + 4)):
+        if toks[j].kind == "DIST":
+            for i in range(j + 1, min(len(toks), j + 5)):
+                if toks[i].kind == "PART":
+                    return toks[i].value
+                if toks[i].kind == "PUNCT":
+                    break
+            for i in range(k - 1, max(-1, k - 8), -1):   # "four drawers with knobs on each"
+                if toks[i].kind == "PART" and toks[i].value != toks[k].value:
+                    return toks[i].value
+            return None
+        if not (toks[j].kind == "WORD" and toks[j].text in ("on", "for", "in", "at", "to", "of")):
+            break
+    # before: "each <X> has a <Y>" or "<X>, each with a <Y>"
+    for j in range(k - 1, max(-1, k - 8), -1):
+        t = toks[j]
+        if t.kind == "DIST":
+            for i in range(j + 1, k):
+                if toks[i].kind == "PART":
+                    return toks[i].value
+            for i in range(j - 1, max(-1, j - 9), -1):
+                if toks[i].kind == "PART":
+                    return toks[i].value
+            return None
+        if t.kind in ("PUNCT",) and t.text in ";:":
+            break
+    return None
+
+
+# --------------------------------------------------------------------------------------------
+# parsing
+# --------------------------------------------------------------------------------------------
+def parse_prompt(text: str) -> ExpectedStructure:
+    """The structure a prompt asks for (see the module docstring)."""
+    out = ExpectedStructure()
+    mentions: list[_Mention] = []
+    motion_links: list[tuple[frozenset, str, bool]] = []   # (joint types, label, said with "or")
+    last_part: str | None = None
+    earlier_parts: list[str] = []
+    for si, sentence in enumerate(_sentences(text)):
+        sentence, grid_facts = _rewrite_counts(sentence)
+        toks = _tokenize(sentence)
+        for lab in _attach(grid_facts + _spatial_facts(sentence, toks), toks, earlier_parts,
+                           out.spatial):
+            motion_links.append((frozenset({"revolute"}), lab, False))
+        earlier_parts += [t.value for t in toks if t.kind == "PART"]
+        if out.category is None:
+            out.category = next((t.value for t in toks if t.kind == "CAT"), None)
+        prefix_motion_at = _read_mentions(toks, si, mentions, motion_links)
+        motion_links += _motion_clauses(toks, prefix_motion_at, last_part)
+        parts_here = [t.value for t in toks if t.kind == "PART"]
+        if parts_here:
+            last_part = parts_here[-1]
+    out.counts, out.min_counts = _counts(mentions)
+    out.joint_types = _joint_types(motion_links, out.counts)
+    _tidy(out, text)
+    return out
+
+
+def _read_mentions(toks: list[_Tok], si: int, mentions: list[_Mention],
+                   motion_links: list) -> set[int]:
+    """Append a _Mention for every part noun of sentence ``si`` (its quantifier and the part
+    whose count distributes over it) and the motions its adjectives and own words give it;
+    returns the token positions of those adjectives (not read again as motion clauses)."""
+    prefix_motion_at: set[int] = set()
+    for k, t in enumerate(toks):
+        if t.kind != "PART":
+            continue
+        m = _Mention(t.value, si, k, t.plural)
+        pre: list = []
+        _scan_quantifier(toks, k, m, pre)
+        for types, _ in pre:
+            motion_links.append((types, t.value, False))
+        for j in range(max(0, k - 5), k):
+            if toks[j].kind == "MOTION" and any(toks[j].value == p[0] for p in pre):
+                prefix_motion_at.add(j)
+        own = _motion_in_phrase(t.text)
+        if own:
+            motion_links.append((own, t.value, False))
+        dist = _distributive_target(toks, k)
+        if dist and dist != t.value and not m.zero and not m.dist_head:
+            m.dist_of = dist
+        mentions.append(m)
+    return prefix_motion_at
+
+
+def _motion_clauses(toks: list[_Tok], skip: set[int],
+                    last_part: str | None) -> list[tuple[frozenset, str, bool]]:
+    """Motion clauses of a sentence ("the drawers slide out"), except the tokens ``skip``:
+    each attaches to the nearest part before (or the last one of the text, or the next)."""
+    links = []
+    for k, t in enumerate(toks):
+        if t.kind != "MOTION" or k in skip:
+            continue
+        target = None
+        for j in range(k - 1, -1, -1):
+            if toks[j].kind == "PART":
+                target = toks[j].value
+                break
+        if target is None:
+            target = last_part
+        if target is None:
+            for j in range(k + 1, len(toks)):
+                if toks[j].kind == "PART":
+                    target = toks[j].value
+                    break
+        if target is not None:
+            # "can turn without limit or rotate on a hinge": either is acceptable
+            j = k - 1
+            is_or = False
+            while j >= 0 and toks[j].kind != "PART":
+                is_or |= toks[j].kind == "WORD" and toks[j].text == "or"
+                j -= 1
+            links.append((t.value, target, is_or))
+    return links
+
+
+def _counts(mentions: list[_Mention]) -> tuple[dict[str, int], dict[str, int]]:
+    """(exact counts, lower bounds) per countable label: a first pass without distribution
+    gives the counts a distributive mention ("a handle on every drawer") multiplies."""
+    exact1, _ = _combine(mentions, {})
+    exact, lower = _combine(mentions, exact1)
+    # "the door is hinged on the left", "porthole door, soap drawer": one of each, when no
+    # other mention counts or bounds that part kind
+    for lab in list(lower):
+        ms = [m for m in mentions if m.label == lab]
+        if ms and all(m.single and m.dist_of is None for m in ms):
+            exact[lab] = 1
+            del lower[lab]
+    return exact, lower
+
+
+def _combine(ms: list[_Mention], base: dict[str, int]) -> tuple[dict, dict]:
+    """Sum the mentions' counts (distributive ones times ``base``) into (exact, lower)."""
+    countable = set(vocab.COUNTABLE_LABELS)
+    exact: dict[str, int] = {}
+    lower: dict[str, int] = {}
+    zero: set[str] = set()
+    plural_seen: dict[tuple[int, str], int] = {}
+    for m in ms:
+        if m.label not in countable:
+            continue
+        if m.zero:
+            zero.add(m.label)
+            continue
+        if m.exact is not None:
+            key = (m.sent, m.label)
+            # appositive: "two doors, a left door and a right door"
+            if m.exact == 1 and m.side and plural_seen.get(key, 0) >= 1:
+                plural_seen[key] -= 1
+                continue
+            n = m.exact
+            if m.dist_of is not None:
+                if m.dist_of in base:
+                    n = n * base[m.dist_of]
+                else:
+                    lower[m.label] = max(lower.get(m.label, 0), n)
+                    continue
+            exact[m.label] = exact.get(m.label, 0) + n
+            if m.exact >= 2:
+                plural_seen[key] = plural_seen.get(key, 0) + m.exact
+        elif m.lower is not None:
+            n = m.lower
+            # "handles on every door", "each with its own handle": one per governing part
+            if m.dist_of is not None and m.dist_of in base:
+                exact[m.label] = exact.get(m.label, 0) + base[m.dist_of]
+                continue
+            lower[m.label] = max(lower.get(m.label, 0), n)
+    for lab in zero:
+        exact.setdefault(lab, 0)
+    lower = {k: v for k, v in lower.items() if k not in exact}
+    return exact, lower
+
+
+def _joint_types(motion_links: list[tuple[frozenset, str, bool]],
+                 counts: dict[str, int]) -> dict[str, list[str]]:
+    """Acceptable joint types per countable label from its motion links: links said with "or"
+    widen the choice, others narrow it (or widen it where they contradict); none for a label
+    asked for zero times."""
+    countable = set(vocab.COUNTABLE_LABELS)
+    joint: dict[str, set] = {}
+    for types, label, is_or in motion_links:
+        if label not in countable:
+            continue
+        if label in joint and is_or:
+            joint[label] = joint[label] | set(types)
+        elif label in joint:
+            both = joint[label] & set(types)
+            joint[label] = both if both else joint[label] | set(types)
+        else:
+            joint[label] = set(types)
+    return {k: sorted(v) for k, v in joint.items() if counts.get(k, 1) != 0}
+
+
+# Everyday names that say which part an object has ("a swivel flash drive" has a swivel cap).
+IMPLIED_PARTS = {
+    "swivel usb stick": ("cap", "revolute"), "swivel flash drive": ("cap", "revolute"),
+    "screw-top bottle": ("cap", "screw"), "flip-top bottle": ("lid", "revolute"),
+}
+
+
+def _tidy(out: ExpectedStructure, text: str) -> None:
+    """Category-specific readings and tidy spatial facts."""
+    low = text.lower()
+    for name, (lab, jt) in IMPLIED_PARTS.items():
+        if name in low and lab not in out.counts and lab not in out.min_counts:
+            out.counts[lab] = 1
+            out.joint_types.setdefault(lab, [jt])
+    if out.category == "USB" and "lid" in (set(out.counts) | set(out.min_counts)) \
+            and "cap" not in out.counts:          # a USB stick's cover is its cap
+        _relabel(out, "lid", "cap")
+    if out.category == "Bottle" and out.joint_types.get("cap") == ["revolute"] \
+            and "lid" not in out.counts:          # a bottle's hinged "cap" is a flip lid
+        _relabel(out, "cap", "lid")
+    for facts in out.spatial.values():
+        h = facts.get("hinge")
+        if h and "side" in h and len(h) > 1:
+            facts["hinge"] = [x for x in h if x != "side"]
+        if "rows" in facts and "columns" in facts and "layout" not in facts:
+            R, C = facts["rows"], facts["columns"]
+            facts["layout"] = "grid" if R > 1 and C > 1 else ("row" if R == 1 else "column")
+
+
+def _relabel(out: ExpectedStructure, a: str, b: str) -> None:
+    for table in (out.counts, out.min_counts, out.joint_types, out.spatial):
+        if a in table:
+            table[b] = table.pop(a)

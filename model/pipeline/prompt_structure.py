@@ -1,0 +1,118 @@
+"""The parts a text prompt states, held during decoding (docs/structure.md, "Counts the prompt
+states").
+
+The articulation transformer reads a prompt through MiniLM and its cross-attention, and it
+miscounts: "three drawers" often decodes as one. Where a prompt states its parts outright
+("three drawers and a door", "a 3x4 keypad", "each drawer has a handle", "a screw cap"), the
+rule-based reader :func:`model.data.prompt_parse.parse_prompt` gives those counts, joint
+types and hinge sides exactly, and decoding is held to them through structure control
+(``decode(structure=...)``). The network still chooses everything the prompt leaves open: the
+category when the prompt does not name one, the count of every part it does not mention, all
+boxes, joints and shapes. A prompt that states no count, or counts this model's categories
+cannot hold, decodes freely, as without this step.
+"""
+from __future__ import annotations
+
+import logging
+from typing import Iterable, Optional
+
+log = logging.getLogger(__name__)
+
+# A person's word for a part that a category calls otherwise: a safe's "knob" is its dial, an
+# oven's "dials" are its knobs, a cabinet's "knobs" are its handles (pulls).
+CATEGORY_SYNONYMS: dict[str, dict[str, str]] = {
+    "Safe": {"knob": "dial"},
+    "Oven": {"dial": "knob"},
+    "WashingMachine": {"knob": "dial"},
+    "StorageFurniture": {"knob": "handle"},
+}
+
+
+def stated_counts(expected) -> bool:
+    """Whether a parsed prompt (``ExpectedStructure``) fixes the count of any part but the
+    body: only then is there something to hold decoding to."""
+    return any(lab != "body" for lab in expected.counts)
+
+
+def structure_for(expected, category: str, labels: Iterable[str]) -> Optional[dict]:
+    """A parsed prompt -> the structure dict (``model.core.structure.parse_structure`` form)
+    that holds one category's decoding to what the prompt states, or None when the prompt
+    names a part this category does not have.
+
+    Every part label of the category the prompt leaves open is ``"auto"`` (the network decides
+    how many), stated counts are exact, a single stated joint type the label can take is
+    forced, and stated hinge sides of doors are kept. A counted part that can only hang on one
+    kind of host (a safe's buttons on its door) gets that host too, at least one of it.
+    """
+    from model.articulation.structure_control import HINGED_LABELS, STRUCTURE_GRAMMAR
+    from model.core.structure import HINGE_SIDES
+
+    grammar = STRUCTURE_GRAMMAR[category]
+    have = set(labels) & set(grammar)
+    rename = CATEGORY_SYNONYMS.get(category, {})
+
+    def own(lab: str) -> str:
+        return rename[lab] if lab not in have and rename.get(lab) in have else lab
+
+    out: dict = {"category": category}
+    out.update({lab: "auto" for lab in sorted(have - {"body"})})
+    counts: dict[str, int] = {}
+    for lab, n in expected.counts.items():
+        if lab != "body":
+            counts[own(lab)] = counts.get(own(lab), 0) + int(n)
+    for lab, n in counts.items():
+        if lab not in have:
+            if n == 0:
+                continue
+            return None
+        req: dict = {"count": n}
+        joints = expected.joint_types.get(lab) or expected.joint_types.get(
+            next((k for k, v in rename.items() if v == lab), ""), [])
+        if n > 0 and len(joints) == 1 and joints[0] in grammar[lab][1]:
+            req["joint"] = joints[0]
+        sides = _hinge_sides(expected, lab, n, HINGE_SIDES) if lab in HINGED_LABELS else None
+        if sides and req.get("joint", "revolute") == "revolute":
+            req["hinge"] = sides
+        out[lab] = req
+    for lab, n in counts.items():
+        hosts = grammar[lab][0] if lab in have else ()
+        if n > 0 and len(hosts) == 1 and hosts[0] != "body" and out.get(hosts[0]) == "auto":
+            out[hosts[0]] = {"count": max(1, int(expected.min_counts.get(hosts[0], 1)))}
+    return out
+
+
+def _hinge_sides(expected, lab: str, count: int, allowed) -> Optional[list]:
+    """The hinge sides a prompt states for ``count`` parts of ``lab`` (one for all, or one
+    per part), when every one is a side structure control takes."""
+    sides = (expected.spatial.get(lab) or {}).get("hinge")
+    if not sides or count <= 0:
+        return None
+    sides = [sides] if isinstance(sides, str) else list(sides)
+    if not all(s in allowed for s in sides) or len(sides) not in (1, count):
+        return None
+    return sides
+
+
+def resolve_prompt_structure(decoder, expected, categories: list[str], *, max_nodes: int,
+                             max_children: int):
+    """The first of ``categories`` (in order of preference) whose structure for the parsed
+    prompt this decoder can produce -> (structure dict, StructurePlan); (None, None) when none
+    can (the prompt then decodes freely)."""
+    labels_of: dict[str, set] = {}
+    for cat, lab in zip(decoder.table_categories, decoder.table_labels):
+        labels_of.setdefault(cat, set()).add(lab)
+    why = []
+    for cat in categories:
+        spec = structure_for(expected, cat, labels_of.get(cat, ()))
+        if spec is None:
+            why.append(f"{cat}: a stated part is not one of its parts")
+            continue
+        try:
+            plan = decoder.resolve_structure(spec, max_nodes=max_nodes,
+                                             max_children=max_children)
+        except ValueError as e:
+            why.append(f"{cat}: {e}")
+            continue
+        return spec, plan
+    log.info("the prompt's stated parts are not held (%s); decoding freely", "; ".join(why))
+    return None, None

@@ -1,0 +1,87 @@
+"""Counts a prompt states are held during decoding (model.pipeline.prompt_structure): the
+structure built from a parsed prompt, and the shipped model decoding under it."""
+from collections import Counter
+import dataclasses
+
+import pytest
+
+from model.articulation.structure_control import STRUCTURE_GRAMMAR
+from model.data.prompt_parse import parse_prompt
+from model.pipeline.prompt_structure import stated_counts, structure_for
+
+
+def _all_labels(cat):
+    return set(STRUCTURE_GRAMMAR[cat])
+
+
+def test_readme_example_gives_exact_counts_and_leaves_the_rest_to_the_model():
+    e = parse_prompt("a kitchen cabinet with three drawers and a door on the left")
+    assert stated_counts(e)
+    s = structure_for(e, "StorageFurniture", _all_labels("StorageFurniture"))
+    assert s == {"category": "StorageFurniture", "drawer": {"count": 3}, "door": {"count": 1},
+                 "handle": "auto"}
+    e = parse_prompt("a dresser with four drawers that pull out, each with its own handle")
+    s = structure_for(e, "StorageFurniture", _all_labels("StorageFurniture"))
+    assert s["drawer"] == {"count": 4, "joint": "prismatic"} and s["handle"] == {"count": 4}
+
+
+def test_joint_types_hinge_sides_and_synonyms():
+    e = parse_prompt("a cabinet whose single door opens on a hinge on the right side")
+    s = structure_for(e, "StorageFurniture", _all_labels("StorageFurniture"))
+    assert s["door"]["count"] == 1 and s["door"]["hinge"] == ["right"]
+    assert s["drawer"] == "auto"
+    # a safe's "knobs" are its dials, which hang on its door: the door comes with them
+    e = parse_prompt("a strongbox with a door and two turning knobs")
+    s = structure_for(e, "Safe", _all_labels("Safe"))
+    assert s["dial"]["count"] == 2 and s["door"] == {"count": 1}
+    e = parse_prompt("a safe with a 4 x 3 keypad")
+    s = structure_for(e, "Safe", _all_labels("Safe"))
+    assert s["button"]["count"] == 12 and s["door"] == {"count": 1}
+    # an oven's "dials" are its knobs
+    e = parse_prompt("a toaster oven with a door and two dials")
+    assert structure_for(e, "Oven", _all_labels("Oven"))["knob"]["count"] == 2
+
+
+def test_nothing_to_hold_or_a_part_the_category_lacks():
+    assert not stated_counts(parse_prompt("a cabinet"))
+    assert not stated_counts(parse_prompt("a bottle"))
+    e = parse_prompt("a bottle with three drawers")
+    assert structure_for(e, "Bottle", _all_labels("Bottle")) is None
+    # a stated zero of a label the category lacks is no obstacle
+    e = parse_prompt("a water bottle with a screw cap and no drawers")
+    assert structure_for(e, "Bottle", _all_labels("Bottle"))["cap"]["count"] == 1
+
+
+@pytest.fixture(scope="module")
+def shipped():
+    from model.pipeline.api import GenerationConfig
+    from model.pipeline.generator import Generator
+    return Generator.load(GenerationConfig())
+
+
+def test_shipped_model_reads_the_readme_example_with_every_seed(shipped):
+    trees, *_ = shipped.decode_trees("a kitchen cabinet with three drawers and a door on the left",
+                                     seed=0, samples=8)
+    for t in trees:
+        n = Counter(t.labels)
+        assert t.category == "StorageFurniture" and n["drawer"] == 3 and n["door"] == 1, n
+        assert t.structure["drawer"]["count"] == 3
+    # seeds vary the layout within the stated structure (dropout layout sampling)
+    from model.metrics.diversity import layout_key
+    keys = {layout_key(t.labels, t.parents, t.joint_types, t.tokens) for t in trees}
+    assert len(keys) >= 6
+
+
+def test_shipped_model_without_stated_counts_or_when_off_decodes_freely(shipped):
+    trees, *_ = shipped.decode_trees("a bottle", seed=0)
+    assert trees[0].structure is None and trees[0].category == "Bottle"
+    # a count no category can hold: decoded freely, no error
+    trees, *_ = shipped.decode_trees("a cabinet with 99 drawers", seed=0)
+    assert trees[0].structure is None
+    off = dataclasses.replace(shipped.config, prompt_structure=False)
+    saved, shipped.config = shipped.config, off
+    try:
+        trees, *_ = shipped.decode_trees("a kitchen cabinet with three drawers", seed=0)
+        assert trees[0].structure is None
+    finally:
+        shipped.config = saved
