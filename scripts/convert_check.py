@@ -14,7 +14,7 @@ Figures printed per consumer:
   ros   built      colcon build installed the package (share/<pkg>/urdf + meshes)
   ros   loads      the installed URDF (package:// through the ament index) loads and moves in
                    the four URDF loaders
-  physics          (--physics) the audit's MuJoCo check (model.metrics.physics) passes on the
+  physics          (--physics) the audit's MuJoCo check (model.export.physics) passes on the
                    URDF and on the MJCF object model
 """
 from __future__ import annotations
@@ -63,7 +63,7 @@ def _mjcf(folder: Path, out: Path, counts: dict, failures: list, physics: bool) 
         failures.append(f"mjcf {folder}: finite={rep.finite} within_limits="
                         f"{rep.within_limits} stuck={stuck} {rep.error}")
     if physics:
-        from model.metrics.physics import physics_check
+        from model.export.physics import physics_check
 
         for kind, path in (("urdf", next(folder.glob("*.urdf"))), ("mjcf", res.model_xml)):
             ph = physics_check(path)

@@ -13,23 +13,14 @@ MODEL = Path(__file__).resolve().parents[1] / "model"
 # The packages of model/, lowest first: a module may import its own package and the layers
 # below it, never one above. Along the product's flow (text -> tree -> latents -> meshes ->
 # URDF -> topic) with two deviations the code needs: export (URDF / MJCF / USD readers and
-# writers, rendering, simulator checks: functions of a core.ArticulatedObject) sits right
-# above core because the data, geometry, refine and imaging layers read URDFs, render and
-# carve collision shapes with it; and geometry (the shape prior) sits below articulation,
+# writers, rendering, simulator checks, the sim-ready verdict: functions of a
+# core.ArticulatedObject) sits right above core because the data, geometry, refine and imaging
+# layers read URDFs, render, carve collision shapes and gate objects with it; and geometry (the shape prior) sits below articulation,
 # whose training targets are the prior's latents. "app" holds the commands, servers and
 # benches that tie several layers together; "model" is the package root (model/__init__.py,
 # model/cli.py); artformer_ros (the topic) sits above all of it and is never imported here.
 LAYERS = ("core", "export", "data", "encoders", "geometry", "articulation", "refine", "imaging",
           "pipeline", "metrics", "app", "model")
-
-# Imports of a higher layer not removed yet, (package, imported package) -> the one module
-# allowed to make them. Both gate objects with the sim-ready verdict of
-# model.metrics.audit.audit_object (the procedural generator redraws, a batch run records);
-# that verdict moves below data (with the measurements of metrics/audit_checks.py and the
-# MuJoCo check of metrics/physics.py) once the split of model/metrics/audit.py has landed,
-# and then these entries go.
-PENDING = {("data", "metrics"): "model/data/synth/verify.py",
-           ("pipeline", "metrics"): "model/pipeline/batch.py"}
 
 
 def _module_name(path: Path) -> tuple[str, bool]:
@@ -104,11 +95,6 @@ def test_packages_of_model_import_one_way_without_cycles():
     packages = {p.parent.name for p in MODEL.glob("*/__init__.py")}
     assert packages <= set(LAYERS), f"place the new packages in LAYERS: {packages - set(LAYERS)}"
     assert "artformer_ros" not in {d for deps in graph.values() for d in deps}, graph
-    for (src, dst), module in PENDING.items():     # still there (else drop it from PENDING)...
-        where = graph.get(src, {}).get(dst, [])
-        assert where, f"{src} -> {dst} is gone: remove it from PENDING"
-        if all(w.startswith(module + ":") for w in where):   # ...and made by that module only
-            del graph[src][dst]
     upward = [w for src, deps in graph.items() for dst, where in deps.items()
               if LAYERS.index(dst) > LAYERS.index(src) for w in where]
     found = cycles(graph)

@@ -219,7 +219,7 @@ def test_flat_visual_kept_degenerate_collision_dropped(tmp_path):
 
 @pytest.mark.parametrize("name", ["cabinet", "bottle"])
 def test_mjcf_passes_the_audit_physics_check_as_its_urdf_does(examples, name):
-    from model.metrics.physics import physics_check
+    from model.export.physics import physics_check
 
     folder, res = examples[name]
     urdf = physics_check(next(folder.glob("*.urdf")))

@@ -169,3 +169,18 @@ def test_physics_check_reads_an_mjcf_model(tmp_path):
     res = physics_check(model_xml[0])
     assert res.ok, res.failures
     assert res.joints == 3
+
+
+def test_old_module_names_re_export_the_verdict_below_data():
+    """The verdict, its measurements and the MuJoCo check live in model.export (the data
+    layer gates its objects with them); model.metrics.audit / audit_checks / physics give the
+    same objects."""
+    from model.export import audit_checks, physics, simready
+    from model.metrics import audit
+    from model.metrics import audit_checks as old_checks
+    from model.metrics import physics as old_physics
+    assert audit.audit_object is simready.audit_object and audit.AuditConfig is simready.AuditConfig
+    assert audit.ObjectAudit is simready.ObjectAudit and audit.overlaps is audit_checks.overlaps
+    assert old_checks.mesh_health is audit_checks.mesh_health
+    assert old_physics.physics_check is physics.physics_check is physics_check
+    assert old_physics.PhysicsConfig is physics.PhysicsConfig

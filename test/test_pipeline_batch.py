@@ -98,7 +98,7 @@ def test_batch_records_failures_and_resumes(tiny, tmp_path):
 
 
 def test_audit_verdict_in_the_manifest(tiny, tmp_path):
-    pytest.importorskip("model.metrics.audit")
+    pytest.importorskip("model.export.simready")
     s = run_batch(["a cabinet with one door"], tmp_path / "a", config=_config(tiny), preview=False,
                   audit=True)
     [e] = _lines(tmp_path / "a" / "manifest.jsonl")

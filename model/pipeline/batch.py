@@ -161,9 +161,9 @@ def _now() -> str:
 
 
 def _audit(obj, urdf: str):
-    """{"sim_ready", "failures"} from model.metrics.audit, or an error note."""
+    """{"sim_ready", "failures"} from model.export.simready, or an error note."""
     try:
-        from model.metrics.audit import audit_object
+        from model.export.simready import audit_object
     except ImportError as e:
         return {"error": f"audit not available: {e}"}
     try:

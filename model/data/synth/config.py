@@ -10,7 +10,7 @@ CATEGORY_WEIGHTS: dict[str, float] = {"StorageFurniture": 0.34, "Safe": 0.12, "O
                                       "WashingMachine": 0.14, "Bottle": 0.13, "USB": 0.13}
 # synth-2: strict overlap test (≤ 1 mm³ and ≤ 0.2 mm thick); synth-3: legs and top overhangs on
 # storage furniture, shaker (recessed-panel) doors, side-hinged oven doors; synth-4: every
-# object also passes the geometric checks of the sim-ready audit (model.metrics.audit:
+# object also passes the geometric checks of the sim-ready audit (model.export.simready:
 # interpenetration over the per-joint sweeps, hinges, drawer axes, mesh health) or is redrawn.
 GENERATOR_VERSION = "synth-4"
 

@@ -84,7 +84,7 @@ def check_object(obj: ArticulatedObject, states: int = 10, *, attach_distance: f
 
 def _audit_failures(obj: ArticulatedObject, physics: bool) -> list[str]:
     """What the sim-ready audit finds wrong with a drawn object."""
-    from model.metrics.audit import AuditConfig, audit_object
+    from model.export.simready import AuditConfig, audit_object
     rep = audit_object(obj, config=AuditConfig(physics=physics))
     return ([rep.error] if rep.error else []) + rep.failures
 
