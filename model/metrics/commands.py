@@ -69,6 +69,9 @@ def _eval_parser() -> argparse.ArgumentParser:
                    help="tree decoding temperature override (product default 0.3)")
     p.add_argument("--no-plan", dest="follow_plan", action="store_const", const=False,
                    default=None, help="the paper's END decoding (no plan head guidance)")
+    p.add_argument("--no-prompt-structure", dest="prompt_structure", action="store_false",
+                   help="--freeform-only: decode with the network's own reading of each "
+                        "prompt, without holding the parts it states")
     p.add_argument("-v", "--verbose", action="store_true")
     return p
 
@@ -148,7 +151,8 @@ def _freeform_main(args) -> int:
     cfg = FreeformConfig(checkpoint=args.checkpoint, prompts_file=args.freeform_file,
                          seeds=args.seeds, seed=args.seed, limit=args.n_freeform,
                          structure_temperature=args.structure_temperature,
-                         follow_plan=args.follow_plan, progress=sys.stderr.isatty())
+                         follow_plan=args.follow_plan, progress=sys.stderr.isatty(),
+                         prompt_structure=args.prompt_structure)
     try:
         res = freeform_alignment(cfg)
     except (ValueError, FileNotFoundError) as e:

@@ -86,22 +86,20 @@ class FreeformConfig:
     structure_temperature: Optional[float] = None   # None: the product default
     follow_plan: Optional[bool] = None
     refine: bool = True                       # the product's layout refinement before scoring
+    prompt_structure: bool = True             # hold the parts the prompt states (the product)
     limit: Optional[int] = None
     progress: bool = False
 
 
 def freeform_alignment(cfg: FreeformConfig) -> dict:
-    """Decode one tree per prompt and seed with the product's decoding settings (the
-    generator's temperature, plan guidance, node limits and layout refinement; no shapes, which
-    do not change the structure) and score it against the prompt's hand-written structure."""
-    import torch
-
-    from model.articulation import ArticulationModel
-    from model.core.runtime import torch_threads
-    from model.pipeline.api import GenerationConfig
-    from model.pipeline.checkpoints import find_checkpoints
-
+    """Decode one tree per prompt and seed exactly as the product decodes it
+    (``Generator.decode_trees``: the generator's temperature, plan guidance, node limits,
+    the parts the prompt states held unless ``prompt_structure`` is off, and layout
+    refinement; no shapes, which do not change the structure) and score it against the
+    prompt's hand-written structure."""
     from model.data.prompt_parse import read_annotated_prompts
+    from model.pipeline.api import GenerationConfig
+    from model.pipeline.generator import Generator
 
     t0 = time.perf_counter()
     items = read_annotated_prompts(cfg.prompts_file)
@@ -109,28 +107,23 @@ def freeform_alignment(cfg: FreeformConfig) -> dict:
         items = items[:cfg.limit]
     if cfg.seeds < 1:
         raise ValueError(f"seeds must be >= 1, got {cfg.seeds}")
-    g = GenerationConfig()
-    temp = g.structure_temperature if cfg.structure_temperature is None else cfg.structure_temperature
-    plan = ("text" in g.follow_plan) if cfg.follow_plan is None else bool(cfg.follow_plan)
-    ckpt = None if cfg.checkpoint in (None, "", "shipped") else cfg.checkpoint
-    path = find_checkpoints(ckpt)["transformer"]
-    am = ArticulationModel.load(path)
+    g = GenerationConfig(checkpoint=None if cfg.checkpoint in (None, "", "shipped")
+                         else cfg.checkpoint, prompt_structure=cfg.prompt_structure)
+    if cfg.structure_temperature is not None:
+        g.structure_temperature = cfg.structure_temperature
+    if cfg.follow_plan is not None:
+        g.follow_plan = ("text",) if cfg.follow_plan else ()
+    gen = Generator.load(g)
+    path = gen.loaded.paths.get("transformer") or cfg.checkpoint or "shipped"
     jobs = [(k, s) for s in range(cfg.seeds) for k in range(len(items))]
     it = jobs
     if cfg.progress:
         from tqdm import tqdm
         it = tqdm(jobs, desc="free-form structures")
-    cond_cache: dict[int, tuple] = {}
     expected, results, rows = [], [], []
     for k, s in it:
         prompt, exp = items[k]
-        with torch_threads(g.token_threads), torch.no_grad():
-            if k not in cond_cache:
-                cond_cache[k] = am.encode_text([prompt])
-            cond, mask = cond_cache[k]
-            tree = am.decode(cond, mask, seed=cfg.seed + s, max_nodes=g.max_nodes,
-                             max_depth=g.max_depth, max_children=g.max_children,
-                             modality="text", temperature=temp, follow_plan=plan)[0]
+        tree = gen.decode_trees(prompt, seed=cfg.seed + s)[0][0]
         obj = tree.to_object()
         if cfg.refine:
             from model.refine import refine_layout
@@ -142,5 +135,6 @@ def freeform_alignment(cfg: FreeformConfig) -> dict:
                      "aligned": r.aligned, "spatial_ok": r.spatial_ok, "failures": r.failures})
     bd = freeform_breakdown(expected, results)
     return {"config": asdict(cfg), "checkpoint": str(path), "n_prompts": len(items),
-            "structure_temperature": temp, "follow_plan": plan, "breakdown": bd,
+            "structure_temperature": g.structure_temperature,
+            "follow_plan": "text" in g.follow_plan, "breakdown": bd,
             "table": freeform_table(bd), "rows": rows, "seconds": time.perf_counter() - t0}

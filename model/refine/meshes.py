@@ -29,14 +29,19 @@ def drop_floaters(man, min_share: float = 0.01):
     return keep[0] if len(keep) == 1 else mf.Manifold.compose(keep)
 
 
-def simplify_to_budget(mans: dict, budget: int, tolerances=(0.001, 0.002, 0.004, 0.008)
+SIMPLIFY_STEPS = (0.0001, 0.0002, 0.0004, 0.001, 0.002, 0.004, 0.008)
+
+
+def simplify_to_budget(mans: dict, budget: int, tolerances=SIMPLIFY_STEPS
                        ) -> tuple[dict, float]:
     """Simplify every Manifold, step by step through ``tolerances`` (m), until the total
     face count is within ``budget``; returns the meshes and the last tolerance used (0:
     untouched). Each step starts from the previous one's meshes (fast: the first step
     removes most faces), so the deviation stays under the sum of the steps used. A part's
     tolerance is capped at 3 % of its longest side, and a step that would empty a part or
-    cost it a fifth of its volume is not taken for that part: small parts keep their shape."""
+    cost it a fifth of its volume is not taken for that part: small parts keep their shape.
+    The ladder starts at 0.1 mm because a thin noisy panel (a 4 mm door, a 3 mm handle
+    bar) loses half its volume at 1 mm yet drops from ~50k faces to ~1k at 0.2-0.4 mm."""
     out, used = mans, 0.0
     for tol in tolerances:
         if budget <= 0 or sum(m.num_tri() for m in out.values()) <= budget:
