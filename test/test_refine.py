@@ -114,3 +114,28 @@ def test_part_resolution_follows_metric_size():
     assert part_resolution((0.03, 0.03, 0.02), cfg) == 16   # a knob
     cfg.mesh_cell = 0
     assert part_resolution((0.03, 0.03, 0.02), cfg) == 64
+
+
+def test_a_bottle_stands_on_the_hull_of_its_body_below_the_cap():
+    """vessel_collision: the bottle body's pieces below the cap's lowest reach become one
+    convex hull reaching down to the body's bottom; the pieces above (the neck) stay; other
+    categories are left alone."""
+    from model.core.example import example_bottle, example_cabinet
+    from model.refine.meshes import vessel_collision
+    obj = example_bottle()
+    body = obj.parts[0]
+    lo, hi = body.mesh.bounds
+    # a perforated shell's pieces: two thin specks at the bottom, a block at the neck
+    specks = [trimesh.creation.box([0.01, 0.01, 0.004], trimesh.transformations.translation_matrix(
+        [x, 0, lo[2] + 0.002])) for x in (-0.02, 0.02)]
+    neck = trimesh.creation.box([0.02, 0.02, 0.02], trimesh.transformations.translation_matrix(
+        [0, 0, hi[2] - 0.01]))
+    body.collision = specks + [neck]
+    assert vessel_collision(obj) == [body.name]
+    hull, *rest = body.collision
+    assert hull.is_convex and hull.bounds[0][2] == pytest.approx(lo[2], abs=1e-6)
+    assert hull.bounds[1][0] - hull.bounds[0][0] > 0.06        # the whole 70 mm girth
+    assert rest == [neck]                                      # reaches above the cut
+    cab = example_cabinet()
+    before = [list(p.collision or []) for p in cab.parts]
+    assert vessel_collision(cab) == [] and [list(p.collision or []) for p in cab.parts] == before

@@ -25,6 +25,7 @@ class RefineConfig:
     carve: bool = True             # parents give way where a moving child passes
     runners: bool = True           # a detached drawer gets a slab of its parent to slide on
     limits: bool = True            # a range ends where its sweep still collides
+    vessels: bool = True           # a bottle stands on the hull of its body below the cap
     face_budget: int = 30000       # visual faces per object (0: keep every face)
     max_overlap: float = 0.01      # what the limit shrink tolerates (the audit's threshold)
 
@@ -57,6 +58,8 @@ def refine_meshes(obj: ArticulatedObject, config: Optional[RefineConfig] = None,
     report["hull_collision"] = M.round_collision(obj, mans)
     for i in mans:               # the boxes describe the meshes that get exported
         obj.parts[i].fit_bbox_to_mesh()
+    if cfg.vessels:
+        report["vessel_collision"] = M.vessel_collision(obj)
     if cfg.limits and not frozen:
         report["limits_shrunk"] = M.shrink_limits(obj, mans, cfg.max_overlap)
     report["faces"] = int(sum(m.num_tri() for m in mans.values()))

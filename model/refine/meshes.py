@@ -249,6 +249,50 @@ def round_collision(obj: ArticulatedObject, mans: dict, solid: float = 0.7) -> l
     return changed
 
 
+VESSELS = ("Bottle",)
+
+
+def vessel_collision(obj: ArticulatedObject, clearance: float = 0.002) -> list[str]:
+    """A vessel's body (a bottle) collides below its closure as one convex hull: the part of
+    its mesh under the lowest point its moving children reach (at rest, half and fully
+    open), hulled, plus its own pieces reaching above that (the neck the cap turns on). A generated
+    body is a thin shell, often perforated near the bottom, whose box pieces leave it
+    standing on a few specks: the free-base physics check saw such bottles fall over when
+    the cap turned (3 of 3 upright with the hull). Its inside is not for a robot to reach
+    into, so the hull does not hide anything a vessel is used for. Returns the parts changed."""
+    import trimesh
+
+    if obj.category not in VESSELS:
+        return []
+    changed = []
+    for k, part in enumerate(obj.parts):
+        kids = [c for c in obj.movable_parts() if obj.parts[c].parent == k]
+        if not kids or part.mesh is None or not part.collision:
+            continue
+        lowest = np.inf
+        for r in (0.0, 0.5, 1.0):
+            T = obj.link_transforms(ratio={obj.parts[c].name: r for c in kids})
+            inv = np.linalg.inv(T[part.name])     # child meshes into this part's frame
+            for c in kids:
+                for i in obj.subtree(c):
+                    if obj.parts[i].mesh is not None and len(obj.parts[i].mesh.vertices):
+                        v = obj.parts[i].mesh.vertices @ (inv @ T[obj.parts[i].name])[:3, :3].T
+                        v = v + (inv @ T[obj.parts[i].name])[:3, 3]
+                        lowest = min(lowest, float(v[:, 2].min()))
+        lo, hi = part.mesh.bounds[:, 2]
+        cut = lowest - clearance
+        if not np.isfinite(cut) or cut - lo < 0.5 * (hi - lo):
+            continue
+        below = trimesh.intersections.slice_mesh_plane(part.mesh, [0, 0, -1], [0, 0, cut],
+                                                       cap=True)
+        if below is None or len(below.faces) < 4:
+            continue
+        above = [b for b in part.collision if float(b.bounds[1][2]) > cut]
+        part.collision = [below.convex_hull] + above
+        changed.append(part.name)
+    return changed
+
+
 def manifolds_of(obj: ArticulatedObject) -> dict:
     out = {}
     for i, p in enumerate(obj.parts):
@@ -262,5 +306,5 @@ def store(obj: ArticulatedObject, mans: dict) -> None:
         obj.parts[i].mesh = meshops.drop_degenerate(meshops.to_trimesh(m))
 
 
-__all__ = ["add_runners", "round_collision", "drop_floaters", "simplify_to_budget", "carve_parents", "carve_collision", "shrink_limits",
+__all__ = ["vessel_collision", "add_runners", "round_collision", "drop_floaters", "simplify_to_budget", "carve_parents", "carve_collision", "shrink_limits",
            "swept_hull", "manifolds_of", "store"]
