@@ -254,6 +254,9 @@ def main(argv: list[str]) -> int:
     p.add_argument("--layout-sampling", choices=("never", "structure", "always"), default=None,
                    help="Monte-Carlo dropout for the parts' boxes and joints (GenerationConfig."
                         "layout_sampling; default: the product's, 'structure')")
+    p.add_argument("--no-prompt-structure", dest="prompt_structure", action="store_false",
+                   help="decode free text with the network's own reading, without holding "
+                        "the parts the prompt states (GenerationConfig.prompt_structure)")
     p.add_argument("--forced", action="store_true",
                    help="decode every built-in prompt with its structure (FORCED) forced")
     p.add_argument("--cm", type=float, default=1.0, help="layout rounding in cm (1)")
@@ -275,7 +278,7 @@ def main(argv: list[str]) -> int:
     try:
         structure = None if a.structure is None else parse_structure(a.structure)
         cfg = GenerationConfig(checkpoint=a.checkpoint, sample_choices=a.sample_choices,
-                               refine=False)
+                               refine=False, prompt_structure=a.prompt_structure)
         if a.structure_temperature is not None:
             cfg.structure_temperature = a.structure_temperature
         if a.layout_sampling is not None:
