@@ -2,6 +2,7 @@
 door's middle, a floater, a URDF that falls over in MuJoCo, and the shipped examples."""
 import json
 import math
+import os
 
 import numpy as np
 import pytest
@@ -184,3 +185,17 @@ def test_old_module_names_re_export_the_verdict_below_data():
     assert old_checks.mesh_health is audit_checks.mesh_health
     assert old_physics.physics_check is physics.physics_check is physics_check
     assert old_physics.PhysicsConfig is physics.PhysicsConfig
+
+
+def test_physics_check_of_a_relative_path_with_relative_mesh_uris(tmp_path, monkeypatch):
+    """A folder named relative to the working directory whose URDF names its meshes relative
+    to itself (as PartNet-Mobility folders do) loads in MuJoCo."""
+    from model.core.example import example_bottle
+    from model.export import export_object
+    from model.export.physics import physics_check
+    out = export_object(example_bottle(), tmp_path / "ds" / "bottle", preview=False,
+                        mesh_uri="relative")
+    monkeypatch.chdir(tmp_path)
+    rel = os.path.relpath(out.urdf_path, tmp_path)
+    res = physics_check(rel)
+    assert not res.error and res.ok, res.to_dict()

@@ -256,7 +256,7 @@ def physics_check(urdf: "str | Path", config: Optional[PhysicsConfig] = None) ->
     try:
         with tempfile.TemporaryDirectory(prefix="artformer_physics_") as tmp:
             for free in (False, True):
-                run, res.joints = _run(Path(urdf), free, cfg, tmp)
+                run, res.joints = _run(Path(urdf).resolve(), free, cfg, tmp)
                 res.runs[run.base] = run
         res.ok = all(r.ok for r in res.runs.values())
     except Exception as e:  # a URDF MuJoCo cannot compile fails the check, with the reason
