@@ -85,3 +85,23 @@ def test_shipped_model_without_stated_counts_or_when_off_decodes_freely(shipped)
         assert trees[0].structure is None
     finally:
         shipped.config = saved
+
+
+def test_open_parts_keep_the_networks_own_counts():
+    """With the network's own reading, the parts the prompt leaves open keep its counts
+    (within the label's training maximum, at least a stated lower bound); handles stay
+    "auto"; a stated lid rules out a washer's door."""
+    e = parse_prompt("an oven with four knobs")
+    s = structure_for(e, "Oven", _all_labels("Oven"),
+                      open_counts={"door": 1, "knob": 2, "drawer": 3, "handle": 1})
+    assert s["knob"] == {"count": 4} and s["door"] == {"count": 1}
+    assert s["drawer"] == {"count": 1} and s["tray"] == {"count": 0}     # an oven has <= 1
+    assert s["handle"] == "auto"
+    e = parse_prompt("a cabinet with drawers and a door")
+    s = structure_for(e, "StorageFurniture", _all_labels("StorageFurniture"),
+                      open_counts={"drawer": 1, "door": 2})
+    assert s["drawer"] == {"count": 2} and s["door"] == {"count": 1}
+    e = parse_prompt("a washing machine with a lid")
+    s = structure_for(e, "WashingMachine", _all_labels("WashingMachine"),
+                      open_counts={"door": 1, "dial": 1})
+    assert s["lid"] == {"count": 1} and s["door"] == {"count": 0} and s["dial"] == {"count": 1}

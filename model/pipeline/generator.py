@@ -207,8 +207,8 @@ class Generator:
     def _stated_structure(self, prompt: str, cond, mask, seed: int):
         """The structure a text prompt states outright (model.pipeline.prompt_structure), as
         (structure dict, StructurePlan), or (None, None) when it states no part count or none
-        this model can hold. A prompt that names no category takes the one the network reads
-        in it (a free decoding of the first sample)."""
+        this model can hold. The network's own decoding of the prompt (first sample) gives the
+        category when the prompt names none, and the counts of the parts it leaves open."""
         from model.data.prompt_parse import parse_prompt
         from model.pipeline.prompt_structure import resolve_prompt_structure, stated_counts
 
@@ -217,17 +217,15 @@ class Generator:
             return None, None
         cfg, am = self.config, self.articulation
         cats = sorted(set(am.table_categories))
-        if expected.category in cats:
-            order = [expected.category]
-        else:
-            with torch_threads(cfg.token_threads):
-                [free] = am.decode(cond, mask, seed=seed, max_nodes=cfg.max_nodes,
-                                   max_depth=cfg.max_depth, max_children=cfg.max_children,
-                                   modality="text", temperature=cfg.structure_temperature,
-                                   follow_plan="text" in cfg.follow_plan)
-            order = [free.category] + [c for c in cats if c != free.category]
+        with torch_threads(cfg.token_threads):
+            [free] = am.decode(cond, mask, seed=seed, max_nodes=cfg.max_nodes,
+                               max_depth=cfg.max_depth, max_children=cfg.max_children,
+                               modality="text", temperature=cfg.structure_temperature,
+                               follow_plan="text" in cfg.follow_plan)
+        order = ([expected.category] if expected.category in cats else
+                 [free.category] + [c for c in cats if c != free.category])
         return resolve_prompt_structure(am, expected, order, max_nodes=cfg.max_nodes,
-                                        max_children=cfg.max_children)
+                                        max_children=cfg.max_children, own_reading=free)
 
     def _geometry(self, tree, gen, timings: dict, keep: Optional[ArticulatedObject]) -> ArticulatedObject:
         """Latents for every new part in one batch, meshes fitted to the predicted boxes."""

@@ -14,6 +14,7 @@ cannot hold, decodes freely, as without this step.
 from __future__ import annotations
 
 import logging
+from collections import Counter
 from typing import Iterable, Optional
 
 log = logging.getLogger(__name__)
@@ -34,17 +35,22 @@ def stated_counts(expected) -> bool:
     return any(lab != "body" for lab in expected.counts)
 
 
-def structure_for(expected, category: str, labels: Iterable[str]) -> Optional[dict]:
+def structure_for(expected, category: str, labels: Iterable[str],
+                  open_counts: Optional[dict] = None) -> Optional[dict]:
     """A parsed prompt -> the structure dict (``model.core.structure.parse_structure`` form)
     that holds one category's decoding to what the prompt states, or None when the prompt
     names a part this category does not have.
 
-    Every part label of the category the prompt leaves open is ``"auto"`` (the network decides
-    how many), stated counts are exact, a single stated joint type the label can take is
-    forced, and stated hinge sides of doors are kept. A counted part that can only hang on one
-    kind of host (a safe's buttons on its door) gets that host too, at least one of it.
+    Stated counts are exact, a single stated joint type the label can take is forced, and
+    stated hinge sides of doors are kept. A counted part that can only hang on one kind of
+    host (a safe's buttons on its door) gets that host too, at least one of it. Every other
+    part label of the category is left to the network: its count in ``open_counts`` (what
+    the network's own decoding of the prompt made, within the label's training maximum; at
+    least a stated lower bound such as "drawers"), or ``"auto"`` without it. Handles stay
+    ``"auto"``: they follow their doors and drawers.
     """
-    from model.articulation.structure_control import HINGED_LABELS, STRUCTURE_GRAMMAR
+    from model.articulation.structure_control import (HINGED_LABELS, STRUCTURE_EXCLUSIVE,
+                                                      STRUCTURE_GRAMMAR)
     from model.core.structure import HINGE_SIDES
 
     grammar = STRUCTURE_GRAMMAR[category]
@@ -56,6 +62,11 @@ def structure_for(expected, category: str, labels: Iterable[str]) -> Optional[di
 
     out: dict = {"category": category}
     out.update({lab: "auto" for lab in sorted(have - {"body"})})
+    if open_counts is not None:
+        lows = {own(lab): int(n) for lab, n in expected.min_counts.items()}
+        for lab in have - {"body", "handle"}:
+            n = max(int(open_counts.get(lab, 0)), lows.get(lab, 0))
+            out[lab] = {"count": min(n, int(grammar[lab][2]))}
     counts: dict[str, int] = {}
     for lab, n in expected.counts.items():
         if lab != "body":
@@ -74,6 +85,10 @@ def structure_for(expected, category: str, labels: Iterable[str]) -> Optional[di
         if sides and req.get("joint", "revolute") == "revolute":
             req["hinge"] = sides
         out[lab] = req
+    for a, b in STRUCTURE_EXCLUSIVE.get(category, ()):     # a stated lid: no door
+        for lab, other in ((a, b), (b, a)):
+            if counts.get(lab, 0) > 0 and other not in counts and other in out:
+                out[other] = {"count": 0}
     for lab, n in counts.items():
         hosts = grammar[lab][0] if lab in have else ()
         if n > 0 and len(hosts) == 1 and hosts[0] != "body" and out.get(hosts[0]) == "auto":
@@ -94,25 +109,31 @@ def _hinge_sides(expected, lab: str, count: int, allowed) -> Optional[list]:
 
 
 def resolve_prompt_structure(decoder, expected, categories: list[str], *, max_nodes: int,
-                             max_children: int):
+                             max_children: int, own_reading=None):
     """The first of ``categories`` (in order of preference) whose structure for the parsed
     prompt this decoder can produce -> (structure dict, StructurePlan); (None, None) when none
-    can (the prompt then decodes freely)."""
+    can (the prompt then decodes freely). ``own_reading``: the network's own decoding of the
+    prompt (a DecodedTree); the parts the prompt leaves open keep its counts where its
+    category is the one held, else they are ``"auto"``."""
     labels_of: dict[str, set] = {}
     for cat, lab in zip(decoder.table_categories, decoder.table_labels):
         labels_of.setdefault(cat, set()).add(lab)
     why = []
     for cat in categories:
-        spec = structure_for(expected, cat, labels_of.get(cat, ()))
-        if spec is None:
-            why.append(f"{cat}: a stated part is not one of its parts")
-            continue
-        try:
-            plan = decoder.resolve_structure(spec, max_nodes=max_nodes,
-                                             max_children=max_children)
-        except ValueError as e:
-            why.append(f"{cat}: {e}")
-            continue
-        return spec, plan
+        tries = [None]
+        if own_reading is not None and own_reading.category == cat:
+            tries.insert(0, Counter(own_reading.labels))
+        for open_counts in tries:
+            spec = structure_for(expected, cat, labels_of.get(cat, ()), open_counts)
+            if spec is None:
+                why.append(f"{cat}: a stated part is not one of its parts")
+                break
+            try:
+                plan = decoder.resolve_structure(spec, max_nodes=max_nodes,
+                                                 max_children=max_children)
+            except ValueError as e:
+                why.append(f"{cat}: {e}")
+                continue
+            return spec, plan
     log.info("the prompt's stated parts are not held (%s); decoding freely", "; ".join(why))
     return None, None

@@ -260,6 +260,9 @@ def _hinge(obj: ArticulatedObject, i: int, face: tuple[int, float]) -> None:
         a = max(ins, key=lambda d: p.bbox_size[d])
     u = [d for d in range(3) if d not in (a, k)][0]
     side = lo[u] if abs(j.origin[u] - lo[u]) <= abs(j.origin[u] - hi[u]) else hi[u]
+    away = _neighbours_side(obj, i, face, a, u)
+    if away:             # a pair of doors: each hinged on its outer edge, swinging apart
+        side = hi[u] if away < 0 else lo[u]
     origin = p.bbox_center.copy()
     origin[k] = hi[k] if s > 0 else lo[k]
     origin[u] = side
@@ -271,6 +274,30 @@ def _hinge(obj: ArticulatedObject, i: int, face: tuple[int, float]) -> None:
     lo_r, hi_r = j.r_range
     j.origin, j.axis = origin, axis
     j.r_range = (0.0, float(max(abs(lo_r), abs(hi_r))))
+
+
+def _neighbours_side(obj: ArticulatedObject, i: int, face: tuple[int, float], a: int,
+                     u: int) -> int:
+    """For a panel hinged about axis ``a``: -1 / +1 when its siblings on the same face that
+    share most of their extent along ``a`` with it (the other door of a pair, a column of
+    knobs beside an oven door) all lie on its -u / +u side, else 0. The panel is then hinged
+    on the edge away from them, as double doors are: hinged at the centre, two doors swing
+    into each other's handles, and a door's hinge edge sweeps its thickness past the hinge
+    line into the knobs beside it."""
+    p = obj.parts[i]
+    lo, hi = _lohi(p)
+    sides = set()
+    for c in obj.children(p.parent):
+        q = obj.parts[c]
+        if c == i or q.label not in (p.label, "knob", "dial", "button") \
+                or face_of(obj, c) != face:
+            continue
+        qlo, qhi = _lohi(q)
+        shared = min(hi[a], qhi[a]) - max(lo[a], qlo[a])
+        if shared < 0.5 * min(hi[a] - lo[a], qhi[a] - qlo[a]):
+            continue
+        sides.add(int(np.sign(q.bbox_center[u] - p.bbox_center[u])))
+    return sides.pop() if len(sides) == 1 and 0 not in sides else 0
 
 
 def _slide(obj: ArticulatedObject, i: int, face: tuple[int, float]) -> None:

@@ -62,8 +62,9 @@ HULL_SWEEP = ("drawer", "tray", "door", "lid", "button", "knob", "dial")
 def swept_hull(obj: ArticulatedObject, mans: dict, k: int, states: int = 8):
     """Union over ``states`` openness ratios of joint ``k`` of its moving subtree. Drawers,
     trays, doors, lids, buttons, knobs and dials sweep as convex hulls (their inside is
-    theirs: a drawer's cavity, a button's pocket; exact for a box that slides); other parts
-    (a cap around its neck) as their own meshes, so what they enclose stays."""
+    theirs: a drawer's cavity, a button's pocket; exact for a box that slides), a turning
+    one as the hulls of each two consecutive states; other parts (a cap around its neck) as
+    their own meshes, so what they enclose stays."""
     mf = meshops._mf()
     sub = [i for i in obj.subtree(k) if i in mans]
     if not sub:
@@ -74,13 +75,20 @@ def swept_hull(obj: ArticulatedObject, mans: dict, k: int, states: int = 8):
         ratios = [0.0, 1.0]
     else:       # a turning part that is not a panel: fine steps, as it is not a hull
         ratios = np.linspace(0, 1, states if hull else (48 if jt.rotates else 2 * states))
-    src = mans
-    pieces = []
+    pieces, last = [], {}
     for r in ratios:
         T = obj.link_transforms(ratio={obj.parts[k].name: float(r)})
         for i in sub:
-            m = src[i].transform(meshops.affine34(T[obj.parts[i].name]))
-            pieces.append(m.hull() if hull else m)
+            m = mans[i].transform(meshops.affine34(T[obj.parts[i].name]))
+            if not hull:
+                pieces.append(m)
+                continue
+            # a turning panel: the hull of two consecutive states holds the wedge its edges
+            # cross between them (a lid's back edge dipping into its body between states)
+            now = m.hull()
+            pieces.append(now if i not in last or jt == JointType.PRISMATIC
+                          else mf.Manifold.batch_boolean([last[i], now], mf.OpType.Add).hull())
+            last[i] = now
     return mf.Manifold.batch_boolean(pieces, mf.OpType.Add)
 
 
