@@ -295,7 +295,7 @@ def test_node_settings_defaults_match_the_parameter_table():
 @pytest.mark.parametrize("name,value,match", [
     ("queue_size", 0, r"\[1, 1000\]"), ("seed", -2, "seed must be in"),
     ("seed", 1.5, "type int"), ("samples", True, "type int"), ("backend", "gpu", "one of"),
-    ("mesh_format", "ply", "one of"), ("device", "tpu", "cuda:N"), ("device", "cuda:x", "cuda"),
+    ("mesh_format", "ply", "one of"), ("device", "tpu", "one of"), ("device", "cuda:0", "one of"),
     ("output_dir", " ", "empty"), ("mesh_uri", "http://x", "package://"),
     ("mesh_uri", "package://", "package://"), ("resolution", 512, "resolution"),
     ("preview", 1, "type bool"), ("guidance", -1.0, "guidance"), ("retention", 0, "retention"),
@@ -311,7 +311,7 @@ def test_invalid_parameter_values_have_a_reason(name, value, match):
 
 
 def test_valid_parameter_values_pass():
-    for name, value in [("device", "cuda:1"), ("guidance", 2), ("seed", -1), ("seed", 0),
+    for name, value in [("device", "cpu"), ("guidance", 2), ("seed", -1), ("seed", 0),
                         ("mesh_format", "glb"), ("backend", "example"),
                         ("mesh_uri", "package://artformer_ros/objects"), ("preview", False)]:
         assert validate(name, value) is None
