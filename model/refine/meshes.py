@@ -29,31 +29,41 @@ def drop_floaters(man, min_share: float = 0.01):
     return keep[0] if len(keep) == 1 else mf.Manifold.compose(keep)
 
 
-SIMPLIFY_STEPS = (0.0001, 0.0002, 0.0004, 0.001, 0.002, 0.004, 0.008)
+SIMPLIFY_STEPS = (0.001, 0.002, 0.004, 0.008)
+FINE_STEPS = (0.0004, 0.0002, 0.0001)
 
 
-def simplify_to_budget(mans: dict, budget: int, tolerances=SIMPLIFY_STEPS
-                       ) -> tuple[dict, float]:
+def simplify_to_budget(mans: dict, budget: int, tolerances=SIMPLIFY_STEPS,
+                       fine=FINE_STEPS) -> tuple[dict, float]:
     """Simplify every Manifold, step by step through ``tolerances`` (m), until the total
     face count is within ``budget``; returns the meshes and the last tolerance used (0:
     untouched). Each step starts from the previous one's meshes (fast: the first step
     removes most faces), so the deviation stays under the sum of the steps used. A part's
     tolerance is capped at 3 % of its longest side, and a step that would empty a part or
     cost it a fifth of its volume is not taken for that part: small parts keep their shape.
-    The ladder starts at 0.1 mm because a thin noisy panel (a 4 mm door, a 3 mm handle
-    bar) loses half its volume at 1 mm yet drops from ~50k faces to ~1k at 0.2-0.4 mm."""
+    A part the first step cannot take tries the ``fine`` tolerances instead, coarsest
+    first: a thin noisy panel (a 4 mm door, a 3 mm handle bar) loses half its volume at
+    1 mm yet drops from ~50k faces to ~1k at 0.2-0.4 mm."""
     out, used = mans, 0.0
-    for tol in tolerances:
+    for step, tol in enumerate(tolerances):
         if budget <= 0 or sum(m.num_tri() for m in out.values()) <= budget:
             break
         nxt = {}
         for k, m in out.items():
-            side = float(np.ptp(np.asarray(m.bounding_box()).reshape(2, 3), axis=0).max())
-            s = m.simplify(min(tol, 0.03 * side))
-            ok = not s.is_empty() and float(s.volume()) >= 0.8 * float(m.volume())
-            nxt[k] = s if ok else m
+            s = _simplified(m, tol)
+            if s is None and step == 0:
+                s = next((f for f in (_simplified(m, t) for t in fine) if f is not None), None)
+            nxt[k] = m if s is None else s
         out, used = nxt, tol
     return out, used
+
+
+def _simplified(m, tol: float):
+    """``m`` simplified at ``tol`` (capped at 3 % of its longest side), or None when that
+    empties it or costs it a fifth of its volume."""
+    side = float(np.ptp(np.asarray(m.bounding_box()).reshape(2, 3), axis=0).max())
+    s = m.simplify(min(tol, 0.03 * side))
+    return s if not s.is_empty() and float(s.volume()) >= 0.8 * float(m.volume()) else None
 
 
 HULL_SWEEP = ("drawer", "tray", "door", "lid", "button", "knob", "dial")
