@@ -139,3 +139,42 @@ def test_a_bottle_stands_on_the_hull_of_its_body_below_the_cap():
     cab = example_cabinet()
     before = [list(p.collision or []) for p in cab.parts]
     assert vessel_collision(cab) == [] and [list(p.collision or []) for p in cab.parts] == before
+
+
+def test_double_doors_swing_apart_and_knobs_keep_clear_of_a_door():
+    """Two doors side by side, both predicted hinged at the middle, end up hinged on their
+    outer edges; a knob 3 mm above a drop-down oven door moves to CLEAR from it, and a knob
+    in front of the door's outline with no room to move makes the door give way."""
+    from model.refine.layout import CLEAR
+    wardrobe = ArticulatedObject(category="StorageFurniture", name="pair", parts=[
+        _part("body_0", "body", -1, (0.5, 1.0, 1.6), (0, 0, 0.8)),
+        _part("door_0", "door", 0, (0.02, 0.48, 1.5), (0.24, -0.245, 0.8),
+              Joint(JointType.REVOLUTE, (0.25, -0.01, 0.8), (0, 0, 1), r_range=(0, 1.6))),
+        _part("door_1", "door", 0, (0.02, 0.48, 1.5), (0.24, 0.245, 0.8),
+              Joint(JointType.REVOLUTE, (0.25, 0.01, 0.8), (0, 0, -1), r_range=(0, 1.6))),
+    ])
+    refine_layout(wardrobe)
+    left, right = wardrobe.parts[1:]
+    assert left.joint.origin[1] == pytest.approx(left.bbox_center[1] - left.bbox_size[1] / 2)
+    assert right.joint.origin[1] == pytest.approx(right.bbox_center[1] + right.bbox_size[1] / 2)
+
+    def oven(knob_centre, knob_size=(0.03, 0.05, 0.05)):
+        return ArticulatedObject(category="Oven", name="oven", parts=[
+            _part("body_0", "body", -1, (0.5, 0.6, 0.6), (0, 0, 0.3)),
+            _part("door_0", "door", 0, (0.03, 0.5, 0.4), (0.235, 0, 0.25),
+                  Joint(JointType.REVOLUTE, (0.25, 0, 0.05), (0, 1, 0), r_range=(0, 1.4))),
+            _part("knob_0", "knob", 0, knob_size, knob_centre,
+                  Joint(JointType.CONTINUOUS, knob_centre, (1, 0, 0))),
+        ])
+    obj = oven((0.265, 0.1, 0.5))          # lower edge 3 mm above the door, room above
+    door_top = 0.25 + 0.2
+    refine_layout(obj)
+    door, knob = obj.parts[1:]
+    assert knob.bbox_center[2] - knob.bbox_size[2] / 2 >= \
+        door.bbox_center[2] + door.bbox_size[2] / 2 + CLEAR - 1e-9
+    obj = oven((0.265, 0.1, 0.45), knob_size=(0.03, 0.05, 0.16))   # over the door, no room
+    refine_layout(obj)
+    door, knob = obj.parts[1:]
+    assert door.bbox_center[2] + door.bbox_size[2] / 2 < door_top
+    assert door.bbox_center[2] + door.bbox_size[2] / 2 <= \
+        knob.bbox_center[2] - knob.bbox_size[2] / 2 - CLEAR + 1e-9

@@ -39,6 +39,7 @@ GAP = 0.002            # m between separated siblings
 MIN_KEEP = 0.3         # a box keeps at least this share of its size when cut
 SIDE_HINGED = ("StorageFurniture", "Safe", "WashingMachine")   # their doors: vertical axes
 FRAME = 0.015          # m of the parent left around an opening (at least 4 % of its side)
+CLEAR = 0.01           # m between a knob, dial or button and the edge of a panel beside it
 
 
 @dataclass
@@ -204,6 +205,52 @@ def _space_small(obj: ArticulatedObject, members: list[int], k: int) -> None:
         for n, m in enumerate(row):
             parts[m].bbox_center[d] = mid - pitch * (len(row) - 1) / 2 + n * pitch
             parts[m].bbox_size[d] = size
+
+
+def _clear_panels(obj: ArticulatedObject, members: list[int], k: int) -> int:
+    """Knobs, dials and buttons on a face keep ``CLEAR`` from the outline of a door or lid
+    on that face: a panel swings its edge out past its closed outline by up to its
+    thickness, and the collision pieces of both stand a few millimetres proud of their
+    meshes (an oven door stalled on the knob 3 mm above it). A small part closer than that
+    moves away along the axis it stands beside the panel on, or, when it stands in front of
+    the panel, off its outline the shortest way, within its parent's face; where it cannot
+    move, the panel gives way on that side. Returns how many moved."""
+    panels = [obj.parts[c] for c in members if obj.parts[c].label in PANELS]
+    plo, phi = _lohi(obj.parts[obj.parts[members[0]].parent]) if members else (None, None)
+    moved = 0
+    for c in members:
+        q = obj.parts[c]
+        if q.label not in ("knob", "dial", "button"):
+            continue
+        for panel in panels:
+            lo, hi = _lohi(panel)
+            qlo, qhi = _lohi(q)
+            ins = [d for d in range(3) if d != k]
+            gaps = [max(lo[d] - qhi[d], qlo[d] - hi[d]) for d in ins]   # < 0: extents overlap
+            if max(gaps) >= CLEAR:
+                continue
+            # beside the panel: away along that axis; in front of it (a knob on a door's
+            # outline, which the door hits when it opens): off it the shortest way that fits
+            order = [int(np.argmax(gaps))] if max(gaps) >= 0 else list(np.argsort(gaps)[::-1])
+            for n in order:
+                d = ins[n]
+                up = q.bbox_center[d] > panel.bbox_center[d]
+                new = q.bbox_center[d] + (CLEAR - gaps[n]) * (1.0 if up else -1.0)
+                if plo[d] + q.bbox_size[d] / 2 <= new <= phi[d] - q.bbox_size[d] / 2:
+                    q.bbox_center[d] = new
+                    moved += 1
+                    break
+            else:                # no room to move it: the panel gives way on that side
+                n = order[0]
+                d, up = ins[n], q.bbox_center[ins[n]] > panel.bbox_center[ins[n]]
+                keep = MIN_KEEP * (hi[d] - lo[d])
+                if up:
+                    hi[d] = max(min(hi[d], qlo[d] - CLEAR), lo[d] + keep)
+                else:
+                    lo[d] = min(max(lo[d], qhi[d] + CLEAR), hi[d] - keep)
+                _set(panel, lo, hi)
+                moved += 1
+    return moved
 
 
 def _overlap(a, b, pad: float = 0.0) -> bool:
@@ -419,6 +466,7 @@ def _siblings(obj: ArticulatedObject, cfg: LayoutConfig, report: dict) -> None:
                         report["aligned_groups"] += 1
             if cfg.separate:
                 report["separated"] += _separate_all(obj, members, k)
+                report["cleared"] = report.get("cleared", 0) + _clear_panels(obj, members, k)
             if cfg.attach:
                 for c in members:
                     for g in obj.children(c):
