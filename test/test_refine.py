@@ -178,3 +178,21 @@ def test_double_doors_swing_apart_and_knobs_keep_clear_of_a_door():
     assert door.bbox_center[2] + door.bbox_size[2] / 2 < door_top
     assert door.bbox_center[2] + door.bbox_size[2] / 2 <= \
         knob.bbox_center[2] - knob.bbox_size[2] / 2 - CLEAR + 1e-9
+
+
+def test_a_screw_cap_sweeps_a_solid_of_revolution_that_holds_it_over_its_travel():
+    """revolved_sweep: every state of the example bottle's screw cap lies inside the sweep
+    (up to the faceting's tiny share), and the sweep has a few thousand faces."""
+    from model.core import meshops
+    from model.core.example import example_bottle
+    from model.refine.meshes import manifolds_of, revolved_sweep
+    obj = example_bottle()
+    mans = manifolds_of(obj)
+    k = next(i for i, p in enumerate(obj.parts) if p.label == "cap")
+    sweep = revolved_sweep(obj, mans, k)
+    assert sweep is not None and 100 < sweep.num_tri() < 20000
+    for r in np.linspace(0, 1, 7):
+        T = obj.link_transforms(ratio={obj.parts[k].name: float(r)})[obj.parts[k].name]
+        cap = mans[k].transform(meshops.affine34(T))
+        outside = float((cap - sweep).volume())
+        assert outside <= 0.01 * float(cap.volume()), (r, outside / float(cap.volume()))
