@@ -76,3 +76,24 @@ def test_drop_degenerate_removes_zero_area_slivers_and_keeps_clean_meshes():
     clean = drop_degenerate(sliver)
     assert len(clean.faces) == 12 and clean.is_watertight
     assert clean.volume == pytest.approx(0.1)
+
+
+def test_sheets_touching_along_an_edge_stay_closed_once_written():
+    """Two cubes meeting along one edge, each closed, vertices not shared: merged by
+    position (as a file reader does) the shared edge has four faces and the mesh is open;
+    separate_coincident keeps them a couple of micrometres apart, closed, same volume."""
+    import trimesh
+    from model.core.meshops import separate_coincident
+    a = trimesh.creation.box((1, 1, 1))
+    b = trimesh.creation.box((1, 1, 1))
+    b.apply_translation((1, 1, 0))
+    both = trimesh.Trimesh(np.vstack([a.vertices, b.vertices]),
+                           np.vstack([a.faces, b.faces + len(a.vertices)]), process=False)
+    merged = both.copy()
+    merged.merge_vertices()
+    assert not merged.is_watertight
+    apart = separate_coincident(both)
+    merged = apart.copy()
+    merged.merge_vertices()
+    assert merged.is_watertight and merged.volume == pytest.approx(2.0, rel=1e-4)
+    assert np.abs(apart.vertices - both.vertices).max() < 1e-5

@@ -123,6 +123,23 @@ def to_trimesh(man) -> "trimesh.Trimesh":  # noqa: F821
     return trimesh.Trimesh(vertices=V, faces=F, process=False)
 
 
+def separate_coincident(mesh: "trimesh.Trimesh", eps: float = 2e-6) -> "trimesh.Trimesh":  # noqa: F821
+    """``mesh`` (a closed manifold's triangles, unmerged) with every vertex that shares its
+    exact position with an earlier one moved ``eps`` into the solid along its normal. A
+    manifold's simplification or booleans can leave two sheets touching along a line or at
+    a point, held apart only by vertex identity; a file keeps positions, not identity, so
+    any reader that merges vertices (most do) would see edges of four faces and an open
+    mesh. A couple of micrometres keeps them apart."""
+    V = np.asarray(mesh.vertices, dtype=np.float64)
+    _, first, inverse = np.unique(V, axis=0, return_index=True, return_inverse=True)
+    dup = first[inverse.reshape(-1)] != np.arange(len(V))
+    if not dup.any():
+        return mesh
+    out = mesh.copy()
+    out.vertices[dup] = V[dup] - eps * np.asarray(mesh.vertex_normals)[dup]
+    return out
+
+
 def drop_degenerate(mesh: "trimesh.Trimesh", height: float = 1e-9) -> "trimesh.Trimesh":  # noqa: F821
     """``mesh`` without its zero-area slivers (faces under ``height`` tall, which exact
     booleans leave where cuts graze each other), coincident vertices merged. Such a face has

@@ -385,7 +385,24 @@ def manifolds_of(obj: ArticulatedObject) -> dict:
 
 def store(obj: ArticulatedObject, mans: dict) -> None:
     for i, m in mans.items():
-        obj.parts[i].mesh = meshops.drop_degenerate(meshops.to_trimesh(m))
+        obj.parts[i].mesh = _closed_on_export(meshops.to_trimesh(m))
+
+
+def _closed_on_export(mesh):
+    """A refined part's mesh as it is written: zero-area slivers dropped, and sheets that
+    touch only by vertex identity held micrometres apart (meshops.separate_coincident) where
+    a reader that merges vertices would otherwise see it open."""
+    out = meshops.drop_degenerate(mesh)
+    if _merged_closed(out):
+        return out
+    apart = meshops.drop_degenerate(meshops.separate_coincident(mesh))
+    return apart if _merged_closed(apart) else out
+
+
+def _merged_closed(mesh) -> bool:
+    m = mesh.copy()
+    m.merge_vertices()
+    return bool(m.is_watertight)
 
 
 __all__ = ["revolved_sweep", "vessel_collision", "add_runners", "round_collision", "drop_floaters", "simplify_to_budget", "carve_parents", "carve_collision", "shrink_limits",
