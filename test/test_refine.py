@@ -196,3 +196,23 @@ def test_a_screw_cap_sweeps_a_solid_of_revolution_that_holds_it_over_its_travel(
         cap = mans[k].transform(meshops.affine34(T))
         outside = float((cap - sweep).volume())
         assert outside <= 0.01 * float(cap.volume()), (r, outside / float(cap.volume()))
+
+
+def test_a_runner_that_would_float_becomes_a_ledge_between_the_side_walls():
+    """A tray hanging in the middle of an open carcass: a slab under its footprint alone
+    would float (a floater the audit fails); the runner spans the carcass wall to wall, so
+    the parent stays one piece and the tray slides on something."""
+    from model.core import meshops
+    from model.refine.meshes import add_runners
+    obj = ArticulatedObject(category="Oven", name="oven", parts=[
+        _part("body_0", "body", -1, (0.5, 0.6, 0.5), (0, 0, 0.25)),
+        _part("tray_0", "tray", 0, (0.3, 0.3, 0.02), (0.05, 0, 0.25),
+              Joint(JointType.PRISMATIC, (0.2, 0, 0.25), (1, 0, 0), t_range=(0, 0.2))),
+    ])
+    carcass = meshops.box((0.5, 0.6, 0.5), (0, 0, 0.25)) - meshops.box((0.5, 0.5, 0.4),
+                                                                         (0.03, 0, 0.25))
+    mans = {0: carcass, 1: meshops.box((0.3, 0.3, 0.02), (0.05, 0, 0.25))}
+    assert len(carcass.decompose()) == 1
+    assert add_runners(obj, mans) == ["tray_0"]
+    assert len(mans[0].decompose()) == 1 and float(mans[0].volume()) > float(carcass.volume())
+    assert float(mans[1].min_gap(mans[0], 0.01)) <= 1e-6

@@ -310,7 +310,17 @@ def add_runners(obj: ArticulatedObject, mans: dict, max_gap: float = 0.005,
         if np.any(slab_hi - slab_lo <= 1e-4):
             continue
         runner = meshops.box(slab_hi - slab_lo, (slab_lo + slab_hi) / 2)
-        mans[par] = mf.Manifold.batch_boolean([mans[par], runner], mf.OpType.Add)
+        joined = mf.Manifold.batch_boolean([mans[par], runner], mf.OpType.Add)
+        if len(joined.decompose()) > len(mans[par].decompose()):
+            # under the part only it floats in a hollow parent: a ledge from side wall to
+            # side wall (as an oven's rack ledges are), or nothing
+            side = [e for e in (0, 1) if e != d][0]
+            slab_lo[side], slab_hi[side] = plo[side], phi[side]
+            runner = meshops.box(slab_hi - slab_lo, (slab_lo + slab_hi) / 2)
+            joined = mf.Manifold.batch_boolean([mans[par], runner], mf.OpType.Add)
+            if len(joined.decompose()) > len(mans[par].decompose()):
+                continue
+        mans[par] = joined
         added.append(p.name)
     return added
 
