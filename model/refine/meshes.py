@@ -311,15 +311,20 @@ def add_runners(obj: ArticulatedObject, mans: dict, max_gap: float = 0.005,
             continue
         runner = meshops.box(slab_hi - slab_lo, (slab_lo + slab_hi) / 2)
         joined = mf.Manifold.batch_boolean([mans[par], runner], mf.OpType.Add)
-        if len(joined.decompose()) > len(mans[par].decompose()):
+        pieces = len(mans[par].decompose())
+        if len(joined.decompose()) > pieces:
             # under the part only it floats in a hollow parent: a ledge from side wall to
-            # side wall (as an oven's rack ledges are), or nothing
+            # side wall (as an oven's rack ledges are) where that runs through no other part
             side = [e for e in (0, 1) if e != d][0]
             slab_lo[side], slab_hi[side] = plo[side], phi[side]
-            runner = meshops.box(slab_hi - slab_lo, (slab_lo + slab_hi) / 2)
-            joined = mf.Manifold.batch_boolean([mans[par], runner], mf.OpType.Add)
-            if len(joined.decompose()) > len(mans[par].decompose()):
-                continue
+            if d != 2:       # under the part's own depth: clear of a door closing in front
+                slab_lo[d], slab_hi[d] = max(lo[d], plo[d]), min(hi[d], phi[d])
+            ledge = meshops.box(slab_hi - slab_lo, (slab_lo + slab_hi) / 2)
+            if not any(float((ledge ^ m).volume()) > 1e-9 for i, m in mans.items()
+                       if i not in (k, par)):
+                wide = mf.Manifold.batch_boolean([mans[par], ledge], mf.OpType.Add)
+                if len(wide.decompose()) <= pieces:
+                    joined = wide
         mans[par] = joined
         added.append(p.name)
     return added
