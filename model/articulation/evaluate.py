@@ -4,18 +4,13 @@ alignment reports score with these (model.metrics.text_alignment, model.imaging.
 """
 from __future__ import annotations
 
-from model.core.objects import JointType
 from model.data import format as fmt
+
+from .trees import label_summary
 
 
 def record_structure(rec: fmt.ObjectRecord) -> dict:
-    counts: dict[str, int] = {}
-    joints: dict[str, set] = {}
-    for lab, jt in zip(rec.labels, rec.joint_types):
-        counts[lab] = counts.get(lab, 0) + 1
-        joints.setdefault(lab, set()).add(JointType(int(jt)).name.lower())
-    return {"category": rec.category, "counts": counts,
-            "joint_types": {k: sorted(v) for k, v in joints.items()}}
+    return {"category": rec.category, **label_summary(rec.labels, rec.joint_types)}
 
 
 def compare(decoded: dict, truth: dict) -> dict:

@@ -26,6 +26,16 @@ if TYPE_CHECKING:
     from .model import ArticulationModel
 
 
+def label_summary(labels, joint_types) -> dict:
+    """{"counts": parts per label, "joint_types": sorted joint type names per label}."""
+    counts: dict[str, int] = {}
+    joints: dict[str, set] = {}
+    for lab, jt in zip(labels, joint_types):
+        counts[lab] = counts.get(lab, 0) + 1
+        joints.setdefault(lab, set()).add(JointType(int(jt)).name.lower())
+    return {"counts": counts, "joint_types": {k: sorted(v) for k, v in joints.items()}}
+
+
 @dataclass
 class DecodedTree:
     """One decoded object, nodes in decoding order (every parent before its children).
@@ -74,13 +84,7 @@ class DecodedTree:
 
     def summary(self) -> dict:
         """Category, count per label and joint types per label (like ArticulatedObject.summary)."""
-        counts: dict[str, int] = {}
-        joints: dict[str, set] = {}
-        for lab, jt in zip(self.labels, self.joint_types):
-            counts[lab] = counts.get(lab, 0) + 1
-            joints.setdefault(lab, set()).add(JointType(int(jt)).name.lower())
-        return {"category": self.category, "counts": counts,
-                "joint_types": {k: sorted(v) for k, v in joints.items()},
+        return {"category": self.category, **label_summary(self.labels, self.joint_types),
                 "num_parts": self.num_nodes}
 
 
