@@ -216,3 +216,15 @@ def test_a_runner_that_would_float_becomes_a_ledge_between_the_side_walls():
     assert add_runners(obj, mans) == ["tray_0"]
     assert len(mans[0].decompose()) == 1 and float(mans[0].volume()) > float(carcass.volume())
     assert float(mans[1].min_gap(mans[0], 0.01)) <= 1e-6
+
+
+def test_a_paper_thin_box_is_thickened_before_meshing():
+    """A handle decoded 0.1 mm thick gets MIN_SIDE on that side (a sheet of it meshes into
+    tens of thousands of faces no simplification keeps); the structure is unchanged."""
+    from model.refine.layout import MIN_SIDE
+    obj = _sloppy_cabinet()
+    obj.parts[4].bbox_size = np.array([0.0001, 0.15, 0.03])
+    before = _structure(obj)
+    rep = refine_layout(obj)
+    assert rep["thickened"] == 1 and obj.parts[4].bbox_size.min() >= MIN_SIDE - 1e-12
+    assert _structure(obj) == before

@@ -40,6 +40,7 @@ MIN_KEEP = 0.3         # a box keeps at least this share of its size when cut
 SIDE_HINGED = ("StorageFurniture", "Safe", "WashingMachine")   # their doors: vertical axes
 FRAME = 0.015          # m of the parent left around an opening (at least 4 % of its side)
 CLEAR = 0.01           # m between a knob, dial or button and the edge of a panel beside it
+MIN_SIDE = 0.006       # m: the thinnest side a part's box keeps
 
 
 @dataclass
@@ -380,6 +381,18 @@ def _snap(obj: ArticulatedObject, deg: float) -> None:
 
 
 # ---------------------------------------------------------------------------------------------
+def _thicken(obj: ArticulatedObject) -> int:
+    """Every box side at least MIN_SIDE about its centre: a handle box decoded 0.1 mm thin
+    becomes a sheet of tens of thousands of faces that no simplification step keeps, and no
+    real part is that thin. Returns how many parts changed."""
+    n = 0
+    for p in obj.parts:
+        if np.any(p.bbox_size < MIN_SIDE):
+            p.bbox_size = np.maximum(p.bbox_size, MIN_SIDE)
+            n += 1
+    return n
+
+
 def refine_layout(obj: ArticulatedObject, config: Optional[LayoutConfig] = None) -> dict:
     """Refine ``obj``'s boxes and joints in place (before meshing); returns what changed."""
     cfg = config or LayoutConfig()
@@ -389,6 +402,7 @@ def refine_layout(obj: ArticulatedObject, config: Optional[LayoutConfig] = None)
         _snap(obj, cfg.snap_deg)
         report["snapped"] = int(sum(not np.allclose(b, obj.parts[i].joint.axis)
                                     for b, i in zip(before, obj.movable_parts())))
+    report["thickened"] = _thicken(obj)
     order = obj.topological_order()            # parents first: children follow moved parents
     for i in order:
         face = face_of(obj, i)
