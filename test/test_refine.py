@@ -220,11 +220,16 @@ def test_a_runner_that_would_float_becomes_a_ledge_between_the_side_walls():
 
 def test_a_paper_thin_box_is_thickened_before_meshing():
     """A handle decoded 0.1 mm thick gets MIN_SIDE on that side (a sheet of it meshes into
-    tens of thousands of faces no simplification keeps); the structure is unchanged."""
-    from model.refine.layout import MIN_SIDE
+    tens of thousands of faces no simplification keeps), a 12 cm cabinet door the thickest
+    panel of its category; the structure is unchanged."""
+    from model.refine.layout import MIN_SIDE, PANEL_MAX
     obj = _sloppy_cabinet()
     obj.parts[4].bbox_size = np.array([0.0001, 0.15, 0.03])
     before = _structure(obj)
     rep = refine_layout(obj)
     assert rep["thickened"] == 1 and obj.parts[4].bbox_size.min() >= MIN_SIDE - 1e-12
     assert _structure(obj) == before
+    obj = _sloppy_cabinet()
+    obj.parts[1].bbox_size = np.array([0.12, 0.96, 0.6])          # a 12 cm cabinet door
+    refine_layout(obj)
+    assert obj.parts[1].bbox_size.min() == pytest.approx(PANEL_MAX["StorageFurniture"])

@@ -41,6 +41,9 @@ SIDE_HINGED = ("StorageFurniture", "Safe", "WashingMachine")   # their doors: ve
 FRAME = 0.015          # m of the parent left around an opening (at least 4 % of its side)
 CLEAR = 0.01           # m between a knob, dial or button and the edge of a panel beside it
 MIN_SIDE = 0.006       # m: the thinnest side a part's box keeps
+# m: the thickest door / lid per category (model/data/synth: cabinet doors 1.5-2.5 cm, oven
+# doors 2.5-4 cm, safe doors 3-5 cm; a fifth more)
+PANEL_MAX = {"StorageFurniture": 0.03, "Oven": 0.048, "WashingMachine": 0.048, "Safe": 0.06}
 
 
 @dataclass
@@ -384,11 +387,17 @@ def _snap(obj: ArticulatedObject, deg: float) -> None:
 def _thicken(obj: ArticulatedObject) -> int:
     """Every box side at least MIN_SIDE about its centre: a handle box decoded 0.1 mm thin
     becomes a sheet of tens of thousands of faces that no simplification step keeps, and no
-    real part is that thin. Returns how many parts changed."""
+    real part is that thin. A door or lid no thicker than PANEL_MAX of its category (the
+    thickest panels of the training data, with a margin): a 12 cm wardrobe door's back edge
+    swings past its outline into its neighbour's handle. Returns how many parts changed."""
     n = 0
+    most = PANEL_MAX.get(obj.category)
     for p in obj.parts:
-        if np.any(p.bbox_size < MIN_SIDE):
-            p.bbox_size = np.maximum(p.bbox_size, MIN_SIDE)
+        size = np.maximum(p.bbox_size, MIN_SIDE)
+        if p.label in PANELS and most is not None and size.min() > most:
+            size[int(np.argmin(size))] = most
+        if not np.allclose(size, p.bbox_size):
+            p.bbox_size = size
             n += 1
     return n
 
