@@ -200,8 +200,9 @@ class Generator:
                                    dropout_sampling=cfg.layout_sampling == "always" or (
                                        cfg.layout_sampling == "structure" and splan is not None))
         timings["decoding"] = (time.perf_counter() - t) / S
+        held = None if spec is None else parse_structure(spec).to_dict()
         for tree in trees:
-            tree.structure = None if spec is None else parse_structure(spec).to_dict()
+            tree.structure = held
         return trees, prompt, modality, timings
 
     def _stated_structure(self, prompt: str, cond, mask, seed: int):

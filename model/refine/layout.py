@@ -220,7 +220,7 @@ def _clear_panels(obj: ArticulatedObject, members: list[int], k: int) -> int:
     the panel, off its outline the shortest way, within its parent's face; where it cannot
     move, the panel gives way on that side. Returns how many moved."""
     panels = [obj.parts[c] for c in members if obj.parts[c].label in PANELS]
-    plo, phi = _lohi(obj.parts[obj.parts[members[0]].parent]) if members else (None, None)
+    plo, phi = _lohi(obj.parts[obj.parts[members[0]].parent])
     moved = 0
     for c in members:
         q = obj.parts[c]

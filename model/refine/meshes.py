@@ -373,9 +373,9 @@ def vessel_collision(obj: ArticulatedObject, clearance: float = 0.002) -> list[s
             for c in kids:
                 for i in obj.subtree(c):
                     if obj.parts[i].mesh is not None and len(obj.parts[i].mesh.vertices):
-                        v = obj.parts[i].mesh.vertices @ (inv @ T[obj.parts[i].name])[:3, :3].T
-                        v = v + (inv @ T[obj.parts[i].name])[:3, 3]
-                        lowest = min(lowest, float(v[:, 2].min()))
+                        A = inv @ T[obj.parts[i].name]
+                        z = obj.parts[i].mesh.vertices @ A[2, :3] + A[2, 3]   # heights only
+                        lowest = min(lowest, float(z.min()))
         lo, hi = part.mesh.bounds[:, 2]
         cut = lowest - clearance
         if not np.isfinite(cut) or cut - lo < 0.5 * (hi - lo):
