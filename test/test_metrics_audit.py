@@ -118,6 +118,25 @@ def test_urdf_that_falls_over_fails_physics(tmp_path):
     assert not res.ok and "could not load" in res.error
 
 
+def test_the_floor_is_under_an_object_whose_root_frame_is_at_its_centre(tmp_path):
+    """A 0.4 m cube centred on its root frame, a drawer in its lower half: the floor goes
+    under the cube's bottom (z = -0.2), not through the drawer at z = 0."""
+    urdf = tmp_path / "centred.urdf"
+    box = '<inertial><mass value="{m}"/><inertia ixx="0.01" iyy="0.01" izz="0.01" ixy="0" ' \
+          'ixz="0" iyz="0"/></inertial><collision><geometry><box size="{s}"/></geometry>' \
+          '</collision>'
+    urdf.write_text(f"""<robot name="centred">
+  <link name="body">{box.format(m=5, s="0.4 0.4 0.4")}</link>
+  <link name="drawer">{box.format(m=0.5, s="0.3 0.3 0.05")}</link>
+  <joint name="slide" type="prismatic"><parent link="body"/><child link="drawer"/>
+    <origin xyz="0.36 0 -0.1"/><axis xyz="1 0 0"/>
+    <limit lower="0" upper="0.2" effort="100" velocity="1"/></joint>
+</robot>""")
+    res = physics_check(urdf)
+    assert res.ok, res.failures
+    assert res.runs["free"].walk < 1e-3 and res.runs["free"].max_tilt_deg < 1.0
+
+
 def test_examples_are_sim_ready_with_physics(tmp_path):
     from model.core.example import example_objects
     from model.export import export_object

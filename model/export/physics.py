@@ -181,8 +181,14 @@ def _run(urdf: Path, free: bool, cfg: PhysicsConfig, tmpdir: str) -> tuple[Physi
     m = spec.compile()
     d = mujoco.MjData(m)
     mujoco.mj_forward(m, d)                       # the rest pose
-    floor = m.geom(FLOOR).id
-    m.geom_pos[floor, 2] = _lowest_point(m, d, floor) - (0.0 if free else FIXED_CLEARANCE)
+    # The floor goes into the spec and the model is compiled again: a world geom's pose is
+    # fixed at compile time (writing m.geom_pos afterwards leaves it at z = 0, through the
+    # object of any URDF whose root frame is not at its bottom).
+    low = _lowest_point(m, d, m.geom(FLOOR).id) - (0.0 if free else FIXED_CLEARANCE)
+    spec.geom(FLOOR).pos = [0.0, 0.0, low]
+    m = spec.compile()
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
     run = PhysicsRun(base="free" if free else "fixed")
     rng = _ranges(m, names)
     # start every joint at its lower limit (the rest state of our exports is 0 = lower)
