@@ -118,3 +118,14 @@ def test_category_specific_joints():
     oven = synth.generate_object(seed=2, index=0, category="Oven")
     labels = oven.summary()["counts"]
     assert labels.get("door") == 1 and labels.get("knob", 0) >= 2
+
+
+def test_small_objects_that_fail_the_physics_check_are_redrawn():
+    """usb 0/28 as first drawn spins around its swivel cap when free on the floor (the base
+    walks); synth-5 checks objects of up to three parts in MuJoCo and redraws that one."""
+    from model.data.synth.verify import _audit_failures
+    first = synth.generate_object(0, 28, synth.SynthConfig(audit_physics_parts=0))
+    assert first.category == "USB" and first.metadata["attempt"] == 0
+    assert any("walked" in f for f in _audit_failures(first, physics=True))
+    gated = synth.generate_object(0, 28)
+    assert gated.metadata["attempt"] > 0 and _audit_failures(gated, physics=True) == []

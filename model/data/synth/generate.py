@@ -66,7 +66,8 @@ def generate_object(seed: int = 0, index: int = 0, config: Optional[SynthConfig]
                                manifolds=mans, stop_early=True)
             if rep.ok:
                 obj.validate()
-                failures = _audit_failures(obj, cfg.audit_physics) if cfg.audit else []
+                physics = cfg.audit_physics or len(obj.parts) <= cfg.audit_physics_parts
+                failures = _audit_failures(obj, physics) if cfg.audit else []
                 if not failures:
                     return obj
                 log.debug("%s seed %d index %d attempt %d fails the audit: %s", cat, seed,
