@@ -233,3 +233,24 @@ def test_a_paper_thin_box_is_thickened_before_meshing():
     obj.parts[1].bbox_size = np.array([0.12, 0.96, 0.6])          # a 12 cm cabinet door
     refine_layout(obj)
     assert obj.parts[1].bbox_size.min() == pytest.approx(PANEL_MAX["StorageFurniture"])
+
+
+def test_keypad_buttons_on_a_door_all_press_into_it():
+    """Two buttons on a safe door, one decoded with its centre behind the door's middle
+    (sunk into it) and its axis pointing out: both press into the door, along the door's
+    inward normal, after refinement."""
+    safe = ArticulatedObject(category="Safe", name="keypad", parts=[
+        _part("body_0", "body", -1, (0.4, 0.4, 0.4), (0, 0, 0.2)),
+        _part("door_0", "door", 0, (0.04, 0.36, 0.36), (0.22, 0, 0.2),
+              Joint(JointType.REVOLUTE, (0.24, -0.18, 0.2), (0, 0, -1), r_range=(0, 1.6))),
+        _part("button_0", "button", 1, (0.03, 0.02, 0.02), (0.25, 0.05, 0.25),
+              Joint(JointType.PRISMATIC, (0.25, 0.05, 0.25), (-1, 0, 0), t_range=(0, 0.005))),
+        _part("button_1", "button", 1, (0.03, 0.02, 0.02), (0.19, 0.05, 0.20),
+              Joint(JointType.PRISMATIC, (0.19, 0.05, 0.20), (1, 0, 0), t_range=(0, 0.005))),
+    ])
+    refine_layout(safe)
+    door = safe.parts[1]
+    outer = door.bbox_center[0] + door.bbox_size[0] / 2
+    for b in safe.parts[2:]:
+        assert np.allclose(b.joint.axis, (-1, 0, 0)), b.name
+        assert b.bbox_center[0] + b.bbox_size[0] / 2 > outer      # proud of the outer face
