@@ -254,3 +254,21 @@ def test_keypad_buttons_on_a_door_all_press_into_it():
     for b in safe.parts[2:]:
         assert np.allclose(b.joint.axis, (-1, 0, 0)), b.name
         assert b.bbox_center[0] + b.bbox_size[0] / 2 > outer      # proud of the outer face
+
+
+def test_a_hovering_screw_cap_is_seated_on_its_jar_and_centred():
+    """A cap decoded 1.5 cm above its jar and 2 cm off its centre line comes down onto the
+    jar (a quarter of its height over the top) and turns about its own centre."""
+    jar = ArticulatedObject(category="Bottle", name="jar", parts=[
+        _part("body_0", "body", -1, (0.1, 0.1, 0.2), (0, 0, 0.1)),
+        _part("cap_0", "cap", 0, (0.05, 0.07, 0.006), (0.0, -0.02, 0.218),
+              Joint(JointType.SCREW, (0.003, -0.004, 0.24), (0, 0, 1), t_range=(0, 0.01),
+                    r_range=(0, 6.0))),
+    ])
+    report = refine_layout(jar)
+    cap = jar.parts[1]
+    assert report["caps_seated"] == 1
+    assert cap.bbox_center[2] - cap.bbox_size[2] / 2 == pytest.approx(0.2 - 0.0015)
+    assert np.allclose(cap.bbox_center[:2], 0) and np.allclose(cap.joint.origin[:2], 0)
+    assert _structure(jar) == [("body", -1, JointType.FIXED), ("cap", 0, JointType.SCREW)]
+    assert refine_layout(jar)["caps_seated"] == 0          # seated caps stay where they are
