@@ -75,14 +75,23 @@ def swept_hull(obj: ArticulatedObject, mans: dict, k: int, states: int = 8):
     theirs: a drawer's cavity, a button's pocket; exact for a box that slides), a turning
     one as the hulls of each two consecutive states; other parts (a cap around its neck) as
     their own meshes, so what they enclose stays."""
+    sweep, _ = _sweep(obj, mans, k, states)
+    return sweep
+
+
+def _sweep(obj: ArticulatedObject, mans: dict, k: int, states: int = 8):
+    """(:func:`swept_hull`, a convex bound of it that costs no boolean: the hull of every
+    posed piece), both None without meshes. The sweep is a lazy CSG union: nothing is
+    computed until it is used (48 posed copies of a turning handle take a second)."""
     mf = meshops._mf()
     sub = [i for i in obj.subtree(k) if i in mans]
     if not sub:
-        return None
+        return None, None
     hull = obj.parts[k].label in HULL_SWEEP
     jt = obj.parts[k].joint.type
     if not hull and jt in (JointType.SCREW, JointType.CONTINUOUS):
-        return revolved_sweep(obj, mans, k)
+        sweep = revolved_sweep(obj, mans, k)
+        return sweep, sweep
     if jt == JointType.PRISMATIC and hull:
         ratios = [0.0, 1.0]
     else:       # a turning part that is not a panel: fine steps, as it is not a hull
@@ -101,7 +110,7 @@ def swept_hull(obj: ArticulatedObject, mans: dict, k: int, states: int = 8):
             pieces.append(now if i not in last or jt == JointType.PRISMATIC
                           else mf.Manifold.batch_boolean([last[i], now], mf.OpType.Add).hull())
             last[i] = now
-    return mf.Manifold.batch_boolean(pieces, mf.OpType.Add)
+    return mf.Manifold.batch_boolean(pieces, mf.OpType.Add), mf.Manifold.batch_hull(pieces)
 
 
 def revolved_sweep(obj: ArticulatedObject, mans: dict, k: int, levels: int = 64,
@@ -175,13 +184,16 @@ def carve_parents(obj: ArticulatedObject, mans: dict) -> dict[int, object]:
         par = obj.parts[k].parent
         if par < 0 or par not in mans:
             continue
-        sweep = swept_hull(obj, mans, k)
-        if sweep is None or sweep.is_empty():
+        sweep, bound = _sweep(obj, mans, k)
+        if sweep is None:
             continue
         before = float(mans[par].volume())
         child = max(sum(float(mans[i].volume()) for i in obj.subtree(k) if i in mans), 1e-12)
-        if float((mans[par] ^ sweep).volume()) < 1e-3 * child:
-            continue                       # nothing in the way: no cut, no extra faces
+        # nothing in the way: no cut, no extra faces (the bound, a superset, decides first
+        # and spares computing the sweep itself in most cases)
+        if float((mans[par] ^ bound).volume()) < 1e-3 * child or sweep.is_empty() \
+                or float((mans[par] ^ sweep).volume()) < 1e-3 * child:
+            continue
         cut = mf.Manifold.batch_boolean([mans[par], sweep], mf.OpType.Subtract)
         if cut.is_empty():
             log.debug("carving %s would empty it; left alone", obj.parts[par].name)
