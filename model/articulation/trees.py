@@ -67,6 +67,8 @@ class DecodedTree:
     hinges: Optional[list] = None      # per node: the hinge side a structure asked for, or None
     structure: Optional[dict] = None   # the structure decoding was held to (asked for, or
                                        # stated by the prompt: GenerationConfig.prompt_structure)
+    spatial: Optional[dict] = None     # arrangements and sides the prompt states (label ->
+                                       # facts; model.refine.arrange holds them in the layout)
 
     @property
     def num_nodes(self) -> int:

@@ -124,10 +124,7 @@ def freeform_alignment(cfg: FreeformConfig) -> dict:
     for k, s in it:
         prompt, exp = items[k]
         tree = gen.decode_trees(prompt, seed=cfg.seed + s)[0][0]
-        obj = tree.to_object()
-        if cfg.refine:
-            from model.refine import refine_layout
-            refine_layout(obj)
+        obj = gen.layout(tree, refine=cfg.refine)
         r = al.check_alignment(exp, al.GeneratedStructure.from_object(obj))
         expected.append(exp)
         results.append(r)

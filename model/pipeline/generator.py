@@ -179,8 +179,12 @@ class Generator:
                                                   max_children=cfg.max_children)
             except ValueError as e:
                 raise GenerationError(str(e)) from None
-        elif modality == "text" and keep is None and cfg.prompt_structure:
-            spec, splan = self._stated_structure(prompt, cond, mask, seed)
+        stated = None
+        if modality == "text" and keep is None and cfg.prompt_structure:
+            from model.data.prompt_parse import parse_prompt
+            stated = parse_prompt(prompt)
+            if structure is None:
+                spec, splan = self._stated_structure(stated, cond, mask, seed)
 
         t = time.perf_counter()
         S = int(samples)
@@ -203,17 +207,17 @@ class Generator:
         held = None if spec is None else parse_structure(spec).to_dict()
         for tree in trees:
             tree.structure = held
+            tree.spatial = stated.spatial if stated is not None and stated.spatial else None
         return trees, prompt, modality, timings
 
-    def _stated_structure(self, prompt: str, cond, mask, seed: int):
-        """The structure a text prompt states outright (model.pipeline.prompt_structure), as
-        (structure dict, StructurePlan), or (None, None) when it states no part count or none
-        this model can hold. The network's own decoding of the prompt (first sample) gives the
-        category when the prompt names none, and the counts of the parts it leaves open."""
-        from model.data.prompt_parse import parse_prompt
+    def _stated_structure(self, expected, cond, mask, seed: int):
+        """The structure a text prompt states outright (``expected``: its parse, see
+        model.pipeline.prompt_structure), as (structure dict, StructurePlan), or (None, None)
+        when it states no part count or none this model can hold. The network's own decoding
+        of the prompt (first sample) gives the category when the prompt names none, and the
+        counts of the parts it leaves open."""
         from model.pipeline.prompt_structure import resolve_prompt_structure, stated_counts
 
-        expected = parse_prompt(prompt)
         if not stated_counts(expected):
             return None, None
         cfg, am = self.config, self.articulation
@@ -228,6 +232,26 @@ class Generator:
         return resolve_prompt_structure(am, expected, order, max_nodes=cfg.max_nodes,
                                         max_children=cfg.max_children, own_reading=free)
 
+    def layout(self, tree, report: Optional[dict] = None,
+               refine: Optional[bool] = None) -> ArticulatedObject:
+        """A decoded tree as the object the product meshes: its boxes and joints, with the
+        layout refinement when ``refine`` (default: the config's) — the arrangements the
+        prompt states first (model.refine.arrange, with ``prompt_structure``), then
+        model.refine.refine_layout, then the hinge sides a structure asked for."""
+        obj = tree.to_object()
+        if not (self.config.refine if refine is None else refine):
+            return obj
+        from model.refine import arrange_stated, place_stated_sides, refine_layout
+        report = {} if report is None else report
+        stated = tree.spatial if self.config.prompt_structure else None
+        if stated:
+            report["arranged"] = arrange_stated(obj, stated)
+        report["layout"] = refine_layout(obj)
+        if stated:
+            report["arranged"] += place_stated_sides(obj, stated)
+        _keep_hinge_sides(obj, tree.hinges)
+        return obj
+
     def _geometry(self, tree, gen, timings: dict, keep: Optional[ArticulatedObject]) -> ArticulatedObject:
         """Latents for every new part in one batch, meshes fitted to the predicted boxes."""
         import torch
@@ -237,14 +261,10 @@ class Generator:
         from model.geometry.data import label_text
 
         cfg = self.config
-        obj = tree.to_object()
         refine_s, refined = 0.0, {}
-        if cfg.refine and keep is None:
-            from model.refine import refine_layout
-            t = time.perf_counter()
-            refined["layout"] = refine_layout(obj)
-            _keep_hinge_sides(obj, tree.hinges)
-            refine_s += time.perf_counter() - t
+        t = time.perf_counter()
+        obj = self.layout(tree, report=refined, refine=cfg.refine and keep is None)
+        refine_s += time.perf_counter() - t
         new = [k for k in range(tree.num_nodes) if not (len(tree.kept) and tree.kept[k])]
         texts = [label_text(tree.category, tree.labels[k]) for k in new]
         t = time.perf_counter()

@@ -1,7 +1,9 @@
 """Refinement between decoding and export: a generated object made physically plausible
 without changing its structure (labels, counts, joint types, parents).
 
+    done = arrange_stated(obj, spatial)  # rows and columns a prompt states (arrange.py)
     report = refine_layout(obj)          # boxes + joints, before meshing (layout.py)
+    done = place_stated_sides(obj, spatial)   # ... and the sides it states (arrange.py)
     report = refine_meshes(obj)          # after meshing (meshes.py)
 
 Both work in place and return what they changed; :class:`RefineConfig` switches each step
@@ -15,6 +17,7 @@ from typing import Optional
 
 from model.core import ArticulatedObject
 
+from .arrange import arrange_stated, place_stated_sides
 from .layout import LayoutConfig, face_of, refine_layout
 
 
@@ -67,4 +70,5 @@ def refine_meshes(obj: ArticulatedObject, config: Optional[RefineConfig] = None,
     return report
 
 
-__all__ = ["RefineConfig", "LayoutConfig", "refine_layout", "refine_meshes", "face_of"]
+__all__ = ["RefineConfig", "LayoutConfig", "arrange_stated", "place_stated_sides",
+           "refine_layout", "refine_meshes", "face_of"]

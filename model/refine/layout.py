@@ -90,13 +90,14 @@ def face_of(obj: ArticulatedObject, i: int) -> Optional[tuple[int, float]]:
         return k, s * (1.0 if abs(j.t_range[1]) >= abs(j.t_range[0]) else -1.0)
     if (p.label in ("knob", "dial") and j.type.rotates) or (p.label == "button"
                                                             and j.type.translates):
-        # the axis names the face's normal; which of its two faces is where the part sits:
-        # on a door or lid, its outer face (a button sunk past a thin panel's middle would
-        # otherwise press outwards while its neighbours press in)
-        k = _principal(j.axis)[0]
+        # on a door or lid: the panel's outer face (a button sunk past a thin panel's middle
+        # would otherwise press outwards while its neighbours press in, one decoded with a
+        # vertical axis would sit on the panel's edge); elsewhere the axis names the face's
+        # normal, and the side of the parent the part is on which of its two faces
         outer = face_of(obj, p.parent) if par.label in PANELS else None
-        if outer is not None and outer[0] == k:
+        if outer is not None:
             return outer
+        k = _principal(j.axis)[0]
         return k, float(np.sign(p.bbox_center[k] - pc[k]) or 1.0)
     if p.label in PANELS:
         k = int(np.argmin(p.bbox_size))

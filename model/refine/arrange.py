@@ -1,0 +1,199 @@
+"""Arrangements a prompt states, held in the layout: "six drawers in two columns", "a 3 x 4
+keypad", "four doors in a row", "two drawers stacked", "a door on the left". The transformer
+decodes the parts a prompt names (counts are held during decoding); where they sit is its own
+guess, and for groups of 6-12 parts it is rarely the stated grid.
+
+* :func:`arrange_stated`, before the layout refinement — rows and columns (``layout`` row /
+  column / grid, ``rows``, ``columns``): the group's members are put on that grid inside the
+  rectangle they already cover on their parent's front or back face, top row first, equal
+  cells, :data:`GAP_SHARE` of a cell between them; each keeps its depth, its children move
+  with it. The refinement then attaches, aligns and separates as usual.
+* :func:`place_stated_sides`, after it — a side (``hpos`` left / right): a group wholly on
+  the other side of its face has the face's layout mirrored left to right (every sibling on
+  that face, with its children and joints), so the rest of the front keeps its arrangement.
+
+"left" is the viewer's, facing the front (``model.data.vocab``). Facts are read by
+``model.data.prompt_parse``. Labels, counts, joint types and the tree never change.
+"""
+from __future__ import annotations
+
+import math
+from typing import Optional
+
+import numpy as np
+
+from model.core import ArticulatedObject
+
+from .layout import PANELS, _lohi, face_of
+
+GAP_SHARE = 0.06       # of a cell's side, between neighbouring cells
+FRONT = 0              # the face normal of a front / back face (object frame: x forward)
+H, V = 1, 2            # horizontal (the viewer's left-right) and vertical axes on such a face
+
+
+def arrange_stated(obj: ArticulatedObject, spatial: Optional[dict]) -> list[str]:
+    """Hold the rows and columns of ``spatial`` (``ExpectedStructure.spatial``: label ->
+    facts) in ``obj``'s boxes, in place, before the layout refinement. Returns what it did,
+    e.g. ["drawer: 3 x 2"] (rows x parts in the widest row)."""
+    done = []
+    for label, facts in (spatial or {}).items():
+        grid = _grid(facts, sum(p.label == label for p in obj.parts))
+        group = _front_group(obj, label) if grid is not None else None
+        if group is not None and _lay_out(obj, group, grid):
+            done.append(f"{label}: {len(grid)} x {max(grid)}")
+    return done
+
+
+def place_stated_sides(obj: ArticulatedObject, spatial: Optional[dict]) -> list[str]:
+    """Hold the sides (``hpos`` left / right) of ``spatial`` after the layout refinement,
+    when siblings no longer overlap: a group wholly on the other side of its face gets the
+    face mirrored. Returns e.g. ["door: mirrored"]."""
+    done = []
+    for label, facts in (spatial or {}).items():
+        group = _front_group(obj, label)
+        if group is None:
+            continue
+        side = facts.get("hpos")
+        if side and len(side) == 1 and side[0] in ("left", "right") \
+                and _mirror_if_opposite(obj, group, side[0], H):
+            done.append(f"{label}: mirrored left to right")
+        for key, want in (("vpos", facts.get("vpos")), ("above", facts.get("above")),
+                          ("below", facts.get("below"))):
+            if want and _mirror_vertically(obj, label, group, key, want):
+                done.append(f"{label}: mirrored top to bottom")
+    return done
+
+
+def _mirror_vertically(obj: ArticulatedObject, label: str, group: list[int], key: str,
+                       want: list) -> bool:
+    """"Drawers on top" / "a drawer above the door" read the wrong way up: mirror the face top
+    to bottom, unless a panel on it turns about a horizontal axis (a drop-down door stays at
+    the bottom of its oven)."""
+    if key == "vpos":
+        if len(want) != 1 or want[0] not in ("top", "bottom"):
+            return False
+        side = "top" if want[0] == "top" else "bottom"
+        return _mirror_if_opposite(obj, group, side, V)
+    parent = obj.parts[group[0]].parent
+    face = face_of(obj, group[0])
+    z = float(np.mean([obj.parts[i].bbox_center[V] for i in group]))
+    for other in want:
+        others = [i for i, p in enumerate(obj.parts) if p.label == other
+                  and p.parent == parent and face_of(obj, i) == face]
+        if not others:
+            return False
+        oz = float(np.mean([obj.parts[i].bbox_center[V] for i in others]))
+        if (z > oz) == (key == "above"):
+            return False          # already the stated way round
+    return _mirror(obj, group, V)
+
+
+def _grid(facts: dict, n: int) -> Optional[list[int]]:
+    """Parts per row, top row first, for ``n`` parts and the stated facts (None: nothing
+    stated, or nothing that fits ``n``)."""
+    layout, rows, cols = facts.get("layout"), facts.get("rows"), facts.get("columns")
+    if n < 2 or not (layout in ("row", "column") or rows or cols):
+        return None
+    if layout == "row":
+        rows, cols = 1, n
+    elif layout == "column":
+        rows, cols = n, 1
+    elif rows and cols:
+        if rows * cols < n or (rows - 1) * cols >= n:
+            return None
+    elif cols:
+        rows = math.ceil(n / cols)
+    else:
+        cols = math.ceil(n / rows)
+    rows, cols = int(rows), int(cols)
+    if rows < 1 or cols < 1:
+        return None
+    per = [cols] * rows
+    per[-1] = n - cols * (rows - 1)             # the bottom row takes what is left
+    return per if per[-1] >= 1 else None
+
+
+def _front_group(obj: ArticulatedObject, label: str) -> Optional[list[int]]:
+    """Every part of ``label``, when all share one parent and its front or back face."""
+    idx = [i for i, p in enumerate(obj.parts) if p.label == label]
+    if not idx:
+        return None
+    faces = {(obj.parts[i].parent, face_of(obj, i)) for i in idx}
+    if len(faces) != 1:
+        return None
+    (_, face), = faces
+    return idx if face is not None and face[0] == FRONT else None
+
+
+def _lay_out(obj: ArticulatedObject, group: list[int], per_row: list[int]) -> bool:
+    lo = np.min([_lohi(obj.parts[i])[0] for i in group], axis=0)
+    hi = np.max([_lohi(obj.parts[i])[1] for i in group], axis=0)
+    rows = len(per_row)
+    height = (hi[V] - lo[V]) / rows
+    # top row first, then the viewer's left first: the model's own order where it had one
+    order = sorted(group, key=lambda i: -obj.parts[i].bbox_center[V])
+    start = 0
+    for r, count in enumerate(per_row):
+        row = sorted(order[start:start + count], key=lambda i: obj.parts[i].bbox_center[H])
+        start += count
+        width = (hi[H] - lo[H]) / count
+        for c, i in enumerate(row):
+            centre = obj.parts[i].bbox_center.copy()
+            size = obj.parts[i].bbox_size.copy()
+            centre[H] = lo[H] + (c + 0.5) * width
+            centre[V] = hi[V] - (r + 0.5) * height
+            size[H], size[V] = width * (1 - GAP_SHARE), height * (1 - GAP_SHARE)
+            _place(obj, i, centre, size)
+    return True
+
+
+def _place(obj: ArticulatedObject, i: int, centre: np.ndarray, size: np.ndarray) -> None:
+    """Part ``i`` to the box (centre, size); its joint origin and its children follow the
+    move of its centre (the layout refinement re-attaches them to its new face)."""
+    p = obj.parts[i]
+    move = centre - p.bbox_center
+    for c in obj.subtree(i):
+        q = obj.parts[c]
+        q.bbox_center = q.bbox_center + move
+        q.joint.origin = np.asarray(q.joint.origin, dtype=np.float64) + move
+    p.bbox_size = np.maximum(size, 1e-4)
+
+
+def _mirror_if_opposite(obj: ArticulatedObject, group: list[int], side: str, ax: int) -> bool:
+    """Mirror the face's layout along ``ax`` (H: left to right, V: top to bottom) when the
+    whole group sits on the other side of its parent's centre than ``side``."""
+    from model.data import vocab
+
+    mid = float(obj.parts[obj.parts[group[0]].parent].bbox_center[ax])
+    unit = np.eye(3)[ax]
+    sides = {vocab.side_of(unit * (float(obj.parts[i].bbox_center[ax]) - mid))
+             for i in group if abs(float(obj.parts[i].bbox_center[ax]) - mid) > 1e-6}
+    if len(sides) != 1 or sides == {side}:
+        return False
+    return _mirror(obj, group, ax)
+
+
+def _mirror(obj: ArticulatedObject, group: list[int], ax: int) -> bool:
+    """Reflect every part on the group's face (with its children and joints) across the
+    parent's centre plane normal to ``ax``. Not top to bottom when a part on the face turns
+    about a horizontal axis (a drop-down or lift-up panel would change its meaning)."""
+    parent = obj.parts[group[0]].parent
+    face = face_of(obj, group[0])
+    on_face = [c for c in obj.children(parent) if face_of(obj, c) == face]
+    moving = [c for k in on_face for c in obj.subtree(k)]
+    if ax == V and any(obj.parts[c].joint.type.rotates and obj.parts[c].label in PANELS
+                       and abs(obj.parts[c].joint.axis[V]) < 0.9 for c in moving):
+        return False
+    mid = float(obj.parts[parent].bbox_center[ax])
+    for c in moving:
+        q = obj.parts[c]
+        q.bbox_center = q.bbox_center.copy()
+        q.bbox_center[ax] = 2 * mid - q.bbox_center[ax]
+        o = np.asarray(q.joint.origin, dtype=np.float64).copy()
+        o[ax] = 2 * mid - o[ax]
+        q.joint.origin = o
+        a = np.asarray(q.joint.axis, dtype=np.float64).copy()
+        a[ax] = -a[ax]
+        # a mirror turns a rotation about a into one about -(mirrored a): same opening
+        q.joint.axis = -a if q.joint.type.rotates else a
+    return True

@@ -1,0 +1,119 @@
+"""Arrangements a prompt states, held in the layout (model.refine.arrange): rows and columns
+of a group, its side, one group above another; never a change of structure."""
+import numpy as np
+import pytest
+
+from model.core import ArticulatedObject, Joint, JointType, Part
+from model.data.prompt_parse import parse_prompt
+from model.data.spatial import arrangement, part_position, spatial_summary, is_above
+from model.refine import arrange_stated, place_stated_sides, refine_layout
+from model.refine.arrange import _grid
+
+
+def _part(name, label, parent, size, centre, joint=None):
+    return Part(name=name, label=label, parent=parent, bbox_center=np.asarray(centre, float),
+                bbox_size=np.asarray(size, float), joint=joint or Joint())
+
+
+def _drawer(n, centre, size=(0.4, 0.8, 0.12)):
+    return _part(f"drawer_{n}", "drawer", 0, size, centre,
+                 Joint(JointType.PRISMATIC, centre, (1, 0, 0), t_range=(0, 0.3)))
+
+
+def _structure(obj):
+    return [(p.label, p.parent, p.joint.type) for p in obj.parts]
+
+
+def _layout(obj, prompt):
+    """What Generator.layout does with a prompt's facts."""
+    facts = parse_prompt(prompt).spatial
+    arrange_stated(obj, facts)
+    refine_layout(obj)
+    place_stated_sides(obj, facts)
+    return obj
+
+
+def test_grid_of_a_stated_arrangement():
+    assert _grid({"columns": 2}, 6) == [2, 2, 2]
+    assert _grid({"rows": 2}, 10) == [5, 5]
+    assert _grid({"layout": "grid", "rows": 4, "columns": 3}, 12) == [3, 3, 3, 3]
+    assert _grid({"layout": "column"}, 3) == [1, 1, 1]
+    assert _grid({"layout": "row"}, 4) == [4]
+    assert _grid({"columns": 3}, 7) == [3, 3, 1]           # the bottom row takes what is left
+    assert _grid({"rows": 2, "columns": 2}, 5) is None       # 5 parts do not fit 2 x 2
+    assert _grid({"hpos": ["left"]}, 4) is None and _grid({"columns": 2}, 1) is None
+
+
+def test_six_drawers_decoded_in_one_column_end_up_in_two_columns():
+    """The decoder stacked all six drawers (overlapping, full width); "in two columns" puts
+    them on a 3 x 2 grid inside the front they cover, handles moving with their drawers."""
+    parts = [_part("body_0", "body", -1, (0.5, 1.0, 1.0), (0, 0, 0.5))]
+    for n in range(6):
+        parts.append(_drawer(n, (0.05, 0.0, 0.85 - 0.13 * n)))
+    parts.append(_part("handle_0", "handle", 1, (0.03, 0.1, 0.02), (0.27, 0.0, 0.85)))
+    obj = ArticulatedObject(category="StorageFurniture", name="sideboard", parts=parts)
+    before = _structure(obj)
+    _layout(obj, "a sideboard with six small drawers in two columns")
+    drawers = [i for i, p in enumerate(obj.parts) if p.label == "drawer"]
+    got = arrangement(obj, drawers)
+    assert (got["layout"], got["rows"], got["columns"]) == ("grid", 3, 2)
+    assert _structure(obj) == before
+    handle, drawer = obj.parts[-1], obj.parts[1]
+    lo, hi = drawer.bbox_center - drawer.bbox_size / 2, drawer.bbox_center + drawer.bbox_size / 2
+    assert np.all(handle.bbox_center[1:] >= lo[1:]) and np.all(handle.bbox_center[1:] <= hi[1:])
+    for a in drawers:                                # no two drawers overlap
+        for b in drawers:
+            if a < b:
+                pa, pb = obj.parts[a], obj.parts[b]
+                gap = np.abs(pa.bbox_center - pb.bbox_center) - (pa.bbox_size + pb.bbox_size) / 2
+                assert gap[1:].max() > 0
+
+
+def _door_and_drawers(door_y, drawer_y):
+    return ArticulatedObject(category="StorageFurniture", name="kitchen", parts=[
+        _part("body_0", "body", -1, (0.5, 1.0, 0.9), (0, 0, 0.45)),
+        _part("door_0", "door", 0, (0.02, 0.45, 0.8), (0.24, door_y, 0.45),
+              Joint(JointType.REVOLUTE, (0.25, door_y + 0.22, 0.45), (0, 0, 1),
+                    r_range=(0, 1.6))),
+        _drawer(0, (0.05, drawer_y, 0.75), (0.4, 0.45, 0.2)),
+        _drawer(1, (0.05, drawer_y, 0.45), (0.4, 0.45, 0.2)),
+        _drawer(2, (0.05, drawer_y, 0.15), (0.4, 0.45, 0.2)),
+    ])
+
+
+def test_a_door_stated_on_the_left_is_mirrored_there_and_still_opens_outwards():
+    obj = _door_and_drawers(door_y=0.25, drawer_y=-0.25)          # the door on the right
+    before = _structure(obj)
+    _layout(obj, "a kitchen cabinet with three drawers and a door on the left")
+    assert part_position(obj, 1)[0] == "left"
+    assert all(part_position(obj, i)[0] == "right" for i in (2, 3, 4))
+    assert _structure(obj) == before
+    door = obj.parts[1]
+    T = door.joint.transform(0.0, 1.0)                            # open by 1 rad
+    free = door.bbox_center + np.array([0.0, 0.2, 0.0])          # away from the hinge
+    assert (T[:3, :3] @ free + T[:3, 3])[0] > free[0]              # swings out, not in
+    # already on its stated side: left alone
+    obj = _door_and_drawers(door_y=-0.25, drawer_y=0.25)
+    assert place_stated_sides(obj, {"door": {"hpos": ["left"]}}) == []
+
+
+def test_drawers_stated_above_the_doors_swap_top_and_bottom_but_an_oven_does_not():
+    cab = ArticulatedObject(category="StorageFurniture", name="base", parts=[
+        _part("body_0", "body", -1, (0.5, 1.0, 0.9), (0, 0, 0.45)),
+        _drawer(0, (0.05, 0.0, 0.12), (0.4, 0.9, 0.18)),
+        _part("door_0", "door", 0, (0.02, 0.9, 0.55), (0.24, 0.0, 0.6),
+              Joint(JointType.REVOLUTE, (0.25, 0.45, 0.6), (0, 0, 1), r_range=(0, 1.6))),
+    ])
+    _layout(cab, "a kitchen base unit with one drawer above a door")
+    assert is_above(spatial_summary(cab), "drawer", "door")
+    oven = ArticulatedObject(category="Oven", name="oven", parts=[
+        _part("body_0", "body", -1, (0.5, 0.6, 0.6), (0, 0, 0.3)),
+        _part("door_0", "door", 0, (0.03, 0.5, 0.3), (0.235, 0, 0.45),
+              Joint(JointType.REVOLUTE, (0.25, 0, 0.3), (0, 1, 0), r_range=(0, 1.4))),
+        _part("knob_0", "knob", 0, (0.03, 0.05, 0.05), (0.265, 0.1, 0.1),
+              Joint(JointType.CONTINUOUS, (0.265, 0.1, 0.1), (1, 0, 0))),
+    ])
+    refine_layout(oven)
+    z = oven.parts[1].bbox_center[2]
+    assert place_stated_sides(oven, {"knob": {"above": ["door"]}}) == []
+    assert oven.parts[1].bbox_center[2] == pytest.approx(z)   # a drop-down door stays put
