@@ -117,3 +117,27 @@ def test_drawers_stated_above_the_doors_swap_top_and_bottom_but_an_oven_does_not
     z = oven.parts[1].bbox_center[2]
     assert place_stated_sides(oven, {"knob": {"above": ["door"]}}) == []
     assert oven.parts[1].bbox_center[2] == pytest.approx(z)   # a drop-down door stays put
+
+
+def test_drawers_stated_across_the_top_are_stacked_above_the_doors_they_were_among():
+    """Drawers decoded among and below the doors: "three drawers across the top and two doors
+    below them" gives the drawers the upper band and the doors the lower one, each group
+    keeping its own layout; nothing overlaps."""
+    parts = [_part("body_0", "body", -1, (0.5, 1.2, 1.0), (0, 0, 0.5))]
+    for n, z in enumerate((0.15, 0.45, 0.75)):
+        parts.append(_drawer(n, (0.05, -0.3, z), (0.4, 0.55, 0.25)))
+    for n, y in enumerate((-0.3, 0.3)):
+        parts.append(_part(f"door_{n}", "door", 0, (0.02, 0.55, 0.6), (0.24, y, 0.5),
+                           Joint(JointType.REVOLUTE, (0.25, y + 0.27, 0.5), (0, 0, 1),
+                                 r_range=(0, 1.6))))
+    obj = ArticulatedObject(category="StorageFurniture", name="sideboard", parts=parts)
+    before = _structure(obj)
+    _layout(obj, "a sideboard: three drawers across the top and two doors below them")
+    assert is_above(spatial_summary(obj), "drawer", "door")
+    assert _structure(obj) == before
+    boxes = [(p.bbox_center - p.bbox_size / 2, p.bbox_center + p.bbox_size / 2)
+             for p in obj.parts[1:]]
+    for a in range(len(boxes)):
+        for b in range(a + 1, len(boxes)):
+            (alo, ahi), (blo, bhi) = boxes[a], boxes[b]
+            assert np.any(np.minimum(ahi, bhi) - np.maximum(alo, blo) <= 1e-9), (a, b)

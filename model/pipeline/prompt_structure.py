@@ -96,10 +96,19 @@ def structure_for(expected, category: str, labels: Iterable[str],
     return out
 
 
+OPENS_TO_HINGE = {"down": "bottom", "up": "top"}
+
+
 def _hinge_sides(expected, lab: str, count: int, allowed) -> Optional[list]:
     """The hinge sides a prompt states for ``count`` parts of ``lab`` (one for all, or one
-    per part), when every one is a side structure control takes."""
-    sides = (expected.spatial.get(lab) or {}).get("hinge")
+    per part), when every one is a side structure control takes. A door stated to open
+    downwards ("a drop-down flap") is hinged at the bottom, one that opens upwards ("a flap
+    that lifts up") at the top."""
+    facts = expected.spatial.get(lab) or {}
+    sides = facts.get("hinge")
+    opens = facts.get("opens") or []
+    if not sides and lab == "door" and opens and all(o in OPENS_TO_HINGE for o in opens):
+        sides = [OPENS_TO_HINGE[o] for o in opens]
     if not sides or count <= 0:
         return None
     sides = [sides] if isinstance(sides, str) else list(sides)

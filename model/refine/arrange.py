@@ -24,10 +24,11 @@ import numpy as np
 
 from model.core import ArticulatedObject
 
-from .layout import PANELS, _lohi, face_of
+from .layout import PANELS, SIDE_HINGED, _lohi, face_of
 
 GAP_SHARE = 0.06       # of a cell's side, between neighbouring cells
 FRONT = 0              # the face normal of a front / back face (object frame: x forward)
+BANDED = ("drawer", "tray", "door", "lid")   # the groups a "drawers on top" is above
 H, V = 1, 2            # horizontal (the viewer's left-right) and vertical axes on such a face
 
 
@@ -41,7 +42,73 @@ def arrange_stated(obj: ArticulatedObject, spatial: Optional[dict]) -> list[str]
         group = _front_group(obj, label) if grid is not None else None
         if group is not None and _lay_out(obj, group, grid):
             done.append(f"{label}: {len(grid)} x {max(grid)}")
+    for label, facts in (spatial or {}).items():
+        for upper, lower in _stated_stacks(obj, label, facts):
+            if _stack(obj, upper, lower):
+                done.append(f"{obj.parts[upper[0]].label} above {obj.parts[lower[0]].label}")
     return done
+
+
+def _stated_stacks(obj: ArticulatedObject, label: str, facts: dict) -> list[tuple]:
+    """(upper group, lower group) pairs on one face that ``facts`` put one above the other:
+    "drawers above the doors", "a door below the drawer", "drawers across the top" (above
+    every other drawer, tray, door or lid on that face)."""
+    group = _front_group(obj, label, every=False)
+    if group is None:
+        return []
+    out = []
+    for key in ("above", "below"):
+        for other in facts.get(key) or []:
+            og = _front_group(obj, other, every=False)
+            if og is not None and _same_face(obj, group, og):
+                out.append((group, og) if key == "above" else (og, group))
+    vpos = facts.get("vpos") or []
+    if len(vpos) == 1 and vpos[0] in ("top", "bottom"):
+        face = face_of(obj, group[0])
+        rest = [c for c in obj.children(obj.parts[group[0]].parent)
+                if c not in group and obj.parts[c].label in BANDED and face_of(obj, c) == face]
+        if rest:
+            out.append((group, rest) if vpos[0] == "top" else (rest, group))
+    return out
+
+
+def _same_face(obj: ArticulatedObject, a: list[int], b: list[int]) -> bool:
+    return (obj.parts[a[0]].parent == obj.parts[b[0]].parent
+            and face_of(obj, a[0]) == face_of(obj, b[0]))
+
+
+def _stack(obj: ArticulatedObject, upper: list[int], lower: list[int]) -> bool:
+    """Unless ``upper`` already sits above ``lower``: the rectangle both cover is split into
+    an upper and a lower band as tall as each group was (scaled to fill it), and each group
+    is mapped into its band with its own layout (relative places and heights) kept. Not on a
+    face where a panel turns about a horizontal axis (an oven's drop-down door)."""
+    def span(g):
+        lo, hi = zip(*(_lohi(obj.parts[i]) for i in g))
+        return float(np.min(np.array(lo)[:, V])), float(np.max(np.array(hi)[:, V]))
+
+    (ulo, uhi), (llo, lhi) = span(upper), span(lower)
+    if ulo > lhi - 0.01 or any(_turns_horizontally(obj, i) for i in upper + lower):
+        return False
+    lo, hi = min(ulo, llo), max(uhi, lhi)
+    scale = (hi - lo) / max((uhi - ulo) + (lhi - llo), 1e-9)
+    for g, (glo, _), base in ((upper, (ulo, uhi), hi - (uhi - ulo) * scale),
+                              (lower, (llo, lhi), lo)):
+        for i in g:
+            p = obj.parts[i]
+            centre, size = p.bbox_center.copy(), p.bbox_size.copy()
+            centre[V] = base + (centre[V] - glo) * scale
+            size[V] *= scale
+            _place(obj, i, centre, size)
+    return True
+
+
+def _turns_horizontally(obj: ArticulatedObject, i: int) -> bool:
+    """A door or lid turning about a horizontal axis (a cabinet's, safe's or washer's door
+    counts as vertical: the layout refinement hinges those on a vertical edge)."""
+    p = obj.parts[i]
+    if p.label == "door" and obj.category in SIDE_HINGED:
+        return False
+    return bool(p.joint.type.rotates and p.label in PANELS and abs(p.joint.axis[V]) < 0.9)
 
 
 def place_stated_sides(obj: ArticulatedObject, spatial: Optional[dict]) -> list[str]:
@@ -113,16 +180,21 @@ def _grid(facts: dict, n: int) -> Optional[list[int]]:
     return per if per[-1] >= 1 else None
 
 
-def _front_group(obj: ArticulatedObject, label: str) -> Optional[list[int]]:
-    """Every part of ``label``, when all share one parent and its front or back face."""
+def _front_group(obj: ArticulatedObject, label: str, every: bool = True) -> Optional[list[int]]:
+    """The parts of ``label`` on one parent's front or back face: all of them (``every``:
+    None unless all are there), or those on the face most of them share."""
     idx = [i for i, p in enumerate(obj.parts) if p.label == label]
-    if not idx:
+    where: dict = {}
+    for i in idx:
+        face = face_of(obj, i)
+        if face is not None and face[0] == FRONT:
+            where.setdefault((obj.parts[i].parent, face), []).append(i)
+    if not where:
         return None
-    faces = {(obj.parts[i].parent, face_of(obj, i)) for i in idx}
-    if len(faces) != 1:
-        return None
-    (_, face), = faces
-    return idx if face is not None and face[0] == FRONT else None
+    best = max(where.values(), key=len)
+    if every:
+        return best if len(best) == len(idx) else None
+    return best if 2 * len(best) > len(idx) else None
 
 
 def _lay_out(obj: ArticulatedObject, group: list[int], per_row: list[int]) -> bool:
@@ -181,8 +253,7 @@ def _mirror(obj: ArticulatedObject, group: list[int], ax: int) -> bool:
     face = face_of(obj, group[0])
     on_face = [c for c in obj.children(parent) if face_of(obj, c) == face]
     moving = [c for k in on_face for c in obj.subtree(k)]
-    if ax == V and any(obj.parts[c].joint.type.rotates and obj.parts[c].label in PANELS
-                       and abs(obj.parts[c].joint.axis[V]) < 0.9 for c in moving):
+    if ax == V and any(_turns_horizontally(obj, c) for c in moving):
         return False
     mid = float(obj.parts[parent].bbox_center[ax])
     for c in moving:
