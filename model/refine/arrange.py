@@ -7,7 +7,10 @@ guess, and for groups of 6-12 parts it is rarely the stated grid.
   column / grid, ``rows``, ``columns``): the group's members are put on that grid inside the
   rectangle they already cover on their parent's front or back face, top row first, equal
   cells, :data:`GAP_SHARE` of a cell between them; each keeps its depth, its children move
-  with it. The refinement then attaches, aligns and separates as usual.
+  with it. Then groups stated one above the other (``above`` / ``below``, or ``vpos`` top /
+  bottom against the other drawers, trays, doors and lids on the face) that overlap in
+  height get an upper and a lower band of the rectangle they cover, each group mapped into
+  its band with its own layout. The refinement then attaches, aligns and separates as usual.
 * :func:`place_stated_sides`, after it — a side (``hpos`` left / right): a group wholly on
   the other side of its face has the face's layout mirrored left to right (every sibling on
   that face, with its children and joints), so the rest of the front keeps its arrangement.
