@@ -264,6 +264,9 @@ def main(argv: list[str]) -> int:
     if argv[:2] == ["eval", "diversity"]:
         from .diversity import main as diversity_main
         return diversity_main(argv[2:])
+    if argv[:2] == ["eval", "layout"]:
+        from .layout_precision import main as layout_main
+        return layout_main(argv[2:])
     if argv[0] == "eval":
         return eval_main(argv[1:])
     if argv[0] == "bench":
