@@ -70,6 +70,12 @@ def test_shipped_model_reads_the_readme_example_with_every_seed(shipped):
     from model.metrics.diversity import layout_key
     keys = {layout_key(t.labels, t.parents, t.joint_types, t.tokens) for t in trees}
     assert len(keys) >= 6
+    # and the door ends up on the viewer's left in the refined layout the product meshes
+    from model.data.spatial import part_position
+    for t in trees:
+        obj = shipped.layout(t)
+        doors = [i for i, p in enumerate(obj.parts) if p.label == "door"]
+        assert [part_position(obj, i)[0] for i in doors] == ["left"]
 
 
 def test_shipped_model_without_stated_counts_or_when_off_decodes_freely(shipped):

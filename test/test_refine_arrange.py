@@ -141,3 +141,24 @@ def test_drawers_stated_across_the_top_are_stacked_above_the_doors_they_were_amo
         for b in range(a + 1, len(boxes)):
             (alo, ahi), (blo, bhi) = boxes[a], boxes[b]
             assert np.any(np.minimum(ahi, bhi) - np.maximum(alo, blo) <= 1e-9), (a, b)
+
+
+def test_a_door_stated_on_the_left_between_drawer_columns_gets_the_left_band():
+    """The README's example as the network lays it out: the door in the middle, drawers on
+    both sides of it. "a door on the left" gives the door the left band of the front and the
+    drawers (two columns kept) the right band."""
+    obj = ArticulatedObject(category="StorageFurniture", name="kitchen", parts=[
+        _part("body_0", "body", -1, (0.5, 1.2, 0.9), (0, 0, 0.45)),
+        _part("door_0", "door", 0, (0.02, 0.4, 0.8), (0.24, 0.0, 0.45),
+              Joint(JointType.REVOLUTE, (0.25, -0.2, 0.45), (0, 0, 1), r_range=(0, 1.6))),
+        _drawer(0, (0.05, -0.4, 0.6), (0.4, 0.35, 0.25)),
+        _drawer(1, (0.05, 0.4, 0.6), (0.4, 0.35, 0.25)),
+        _drawer(2, (0.05, 0.4, 0.3), (0.4, 0.35, 0.25)),
+    ])
+    before = _structure(obj)
+    _layout(obj, "a kitchen cabinet with three drawers and a door on the left")
+    door_right = obj.parts[1].bbox_center[1] + obj.parts[1].bbox_size[1] / 2
+    assert part_position(obj, 1)[0] == "left"
+    assert all(p.bbox_center[1] - p.bbox_size[1] / 2 >= door_right - 1e-9 for p in obj.parts[2:])
+    assert len({round(float(p.bbox_center[1]), 3) for p in obj.parts[2:]}) == 2   # 2 columns
+    assert _structure(obj) == before

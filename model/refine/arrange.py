@@ -8,9 +8,10 @@ guess, and for groups of 6-12 parts it is rarely the stated grid.
   rectangle they already cover on their parent's front or back face, top row first, equal
   cells, :data:`GAP_SHARE` of a cell between them; each keeps its depth, its children move
   with it. Then groups stated one above the other (``above`` / ``below``, or ``vpos`` top /
-  bottom against the other drawers, trays, doors and lids on the face) that overlap in
-  height get an upper and a lower band of the rectangle they cover, each group mapped into
-  its band with its own layout. The refinement then attaches, aligns and separates as usual.
+  bottom against the other drawers, trays, doors and lids on the face) or on one side of
+  the others (``hpos`` left / right) that are not get an upper and a lower (or a left and a
+  right) band of the span they cover, each group mapped into its band with its own layout.
+  The refinement then attaches, aligns and separates as usual.
 * :func:`place_stated_sides`, after it — a side (``hpos`` left / right): a group wholly on
   the other side of its face has the face's layout mirrored left to right (every sibling on
   that face, with its children and joints), so the rest of the front keeps its arrangement.
@@ -32,6 +33,7 @@ from .layout import PANELS, SIDE_HINGED, _lohi, face_of
 GAP_SHARE = 0.06       # of a cell's side, between neighbouring cells
 FRONT = 0              # the face normal of a front / back face (object frame: x forward)
 BANDED = ("drawer", "tray", "door", "lid")   # the groups a "drawers on top" is above
+SIDES = {1: ("left", "right"), 2: ("top", "bottom")}
 H, V = 1, 2            # horizontal (the viewer's left-right) and vertical axes on such a face
 
 
@@ -46,16 +48,18 @@ def arrange_stated(obj: ArticulatedObject, spatial: Optional[dict]) -> list[str]
         if group is not None and _lay_out(obj, group, grid):
             done.append(f"{label}: {len(grid)} x {max(grid)}")
     for label, facts in (spatial or {}).items():
-        for upper, lower in _stated_stacks(obj, label, facts):
-            if _stack(obj, upper, lower):
-                done.append(f"{obj.parts[upper[0]].label} above {obj.parts[lower[0]].label}")
+        for low, high, ax in _stated_bands(obj, label, facts):
+            if _bands(obj, low, high, ax):
+                a, b = obj.parts[high[0]].label, obj.parts[low[0]].label
+                done.append(f"{a} above {b}" if ax == V else f"{b} left of {a}")
     return done
 
 
-def _stated_stacks(obj: ArticulatedObject, label: str, facts: dict) -> list[tuple]:
-    """(upper group, lower group) pairs on one face that ``facts`` put one above the other:
-    "drawers above the doors", "a door below the drawer", "drawers across the top" (above
-    every other drawer, tray, door or lid on that face)."""
+def _stated_bands(obj: ArticulatedObject, label: str, facts: dict) -> list[tuple]:
+    """(low group, high group, axis) on one face that ``facts`` put side by side along the
+    axis: "drawers above the doors" and "a door below the drawer" (V: low = lower),
+    "drawers across the top" (above every other drawer, tray, door or lid on that face),
+    "a door on the left" (H: low = the viewer's left, of the others on that face)."""
     group = _front_group(obj, label, every=False)
     if group is None:
         return []
@@ -64,14 +68,14 @@ def _stated_stacks(obj: ArticulatedObject, label: str, facts: dict) -> list[tupl
         for other in facts.get(key) or []:
             og = _front_group(obj, other, every=False)
             if og is not None and _same_face(obj, group, og):
-                out.append((group, og) if key == "above" else (og, group))
-    vpos = facts.get("vpos") or []
-    if len(vpos) == 1 and vpos[0] in ("top", "bottom"):
-        face = face_of(obj, group[0])
-        rest = [c for c in obj.children(obj.parts[group[0]].parent)
-                if c not in group and obj.parts[c].label in BANDED and face_of(obj, c) == face]
-        if rest:
-            out.append((group, rest) if vpos[0] == "top" else (rest, group))
+                out.append((og, group, V) if key == "above" else (group, og, V))
+    face = face_of(obj, group[0])
+    rest = [c for c in obj.children(obj.parts[group[0]].parent)
+            if c not in group and obj.parts[c].label in BANDED and face_of(obj, c) == face]
+    for key, ax, low_word in (("vpos", V, "bottom"), ("hpos", H, "left")):
+        want = facts.get(key) or []
+        if rest and len(want) == 1 and want[0] in SIDES[ax]:
+            out.append((group, rest, ax) if want[0] == low_word else (rest, group, ax))
     return out
 
 
@@ -80,27 +84,27 @@ def _same_face(obj: ArticulatedObject, a: list[int], b: list[int]) -> bool:
             and face_of(obj, a[0]) == face_of(obj, b[0]))
 
 
-def _stack(obj: ArticulatedObject, upper: list[int], lower: list[int]) -> bool:
-    """Unless ``upper`` already sits above ``lower``: the rectangle both cover is split into
-    an upper and a lower band as tall as each group was (scaled to fill it), and each group
-    is mapped into its band with its own layout (relative places and heights) kept. Not on a
-    face where a panel turns about a horizontal axis (an oven's drop-down door)."""
+def _bands(obj: ArticulatedObject, low: list[int], high: list[int], ax: int) -> bool:
+    """Unless ``low`` already sits wholly below (V) or left of (H) ``high``: the span both
+    groups cover along ``ax`` is split into a low and a high band as long as each group's
+    own span (scaled to fill it), and each group is mapped into its band with its own
+    layout (relative places and sizes) kept. Not top to bottom on a face where a panel turns
+    about a horizontal axis (an oven's drop-down door stays at the bottom)."""
     def span(g):
         lo, hi = zip(*(_lohi(obj.parts[i]) for i in g))
-        return float(np.min(np.array(lo)[:, V])), float(np.max(np.array(hi)[:, V]))
+        return float(np.min(np.array(lo)[:, ax])), float(np.max(np.array(hi)[:, ax]))
 
-    (ulo, uhi), (llo, lhi) = span(upper), span(lower)
-    if ulo > lhi - 0.01 or any(_turns_horizontally(obj, i) for i in upper + lower):
+    (alo, ahi), (blo, bhi) = span(low), span(high)
+    if ahi < blo + 0.01 or (ax == V and any(_turns_horizontally(obj, i) for i in low + high)):
         return False
-    lo, hi = min(ulo, llo), max(uhi, lhi)
-    scale = (hi - lo) / max((uhi - ulo) + (lhi - llo), 1e-9)
-    for g, (glo, _), base in ((upper, (ulo, uhi), hi - (uhi - ulo) * scale),
-                              (lower, (llo, lhi), lo)):
+    lo, hi = min(alo, blo), max(ahi, bhi)
+    scale = (hi - lo) / max((ahi - alo) + (bhi - blo), 1e-9)
+    for g, glo, base in ((low, alo, lo), (high, blo, hi - (bhi - blo) * scale)):
         for i in g:
             p = obj.parts[i]
             centre, size = p.bbox_center.copy(), p.bbox_size.copy()
-            centre[V] = base + (centre[V] - glo) * scale
-            size[V] *= scale
+            centre[ax] = base + (centre[ax] - glo) * scale
+            size[ax] *= scale
             _place(obj, i, centre, size)
     return True
 
