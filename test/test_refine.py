@@ -272,3 +272,19 @@ def test_a_hovering_screw_cap_is_seated_on_its_jar_and_centred():
     assert np.allclose(cap.bbox_center[:2], 0) and np.allclose(cap.joint.origin[:2], 0)
     assert _structure(jar) == [("body", -1, JointType.FIXED), ("cap", 0, JointType.SCREW)]
     assert refine_layout(jar)["caps_seated"] == 0          # seated caps stay where they are
+
+
+def test_a_sliver_touching_a_part_at_one_vertex_is_not_written():
+    """A 4-face tetrahedron sharing one vertex with a box is its own shell to a reader (the
+    audit counts it as a floater); the stored mesh drops it and stays closed."""
+    from model.refine.meshes import _without_specks
+    box = trimesh.creation.box(extents=(1, 1, 1))
+    corner = box.vertices[np.argmax(box.vertices.sum(1))]
+    tet = trimesh.Trimesh(np.vstack([corner, corner + [0.01, 0, 0], corner + [0, 0.01, 0],
+                                     corner + [0, 0, 0.01]]),
+                          [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]], process=False)
+    both = trimesh.util.concatenate([box, tet])
+    both.merge_vertices()                       # the tetrahedron shares the box's corner
+    out = _without_specks(both)
+    assert len(out.faces) == len(box.faces) and out.is_watertight
+    assert _without_specks(box) is box

@@ -412,7 +412,33 @@ def manifolds_of(obj: ArticulatedObject) -> dict:
 
 def store(obj: ArticulatedObject, mans: dict) -> None:
     for i, m in mans.items():
-        obj.parts[i].mesh = _closed_on_export(meshops.to_trimesh(m))
+        obj.parts[i].mesh = _without_specks(_closed_on_export(meshops.to_trimesh(m)))
+
+
+def _without_specks(mesh, share: float = 0.01):
+    """``mesh`` without its edge-connected pieces of under ``share`` of its surface: a
+    sliver that a cut leaves touching the part only at a vertex (a 4-face tetrahedron on a
+    carved carcass) is its own shell once written, and a floater to anyone who loads it.
+    Each piece of a closed mesh is closed, so dropping whole pieces keeps it closed."""
+    import trimesh
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    F = len(mesh.faces)
+    adj = np.asarray(mesh.face_adjacency)
+    if F == 0 or len(adj) == 0:
+        return mesh
+    n, lab = connected_components(coo_matrix((np.ones(len(adj)), (adj[:, 0], adj[:, 1])),
+                                             shape=(F, F)), directed=False)
+    if n <= 1:
+        return mesh
+    area = np.bincount(lab, weights=np.asarray(mesh.area_faces), minlength=n)
+    keep = area >= share * float(area.sum())
+    if keep.all():
+        return mesh
+    out = trimesh.Trimesh(mesh.vertices, np.asarray(mesh.faces)[keep[lab]], process=False)
+    out.remove_unreferenced_vertices()
+    return out
 
 
 def _closed_on_export(mesh):
