@@ -3,7 +3,7 @@
 MuJoCo check too) and audit each one again; the first --physics of them also in MuJoCo (each
 is exported with its collision geometry, which takes seconds per object).
 
-    python scripts/audit_floor.py --n 200 --physics 60 --seed 0 --workers 2 --json floor.json
+    python scripts/audit_floor.py --n 200 --physics 200 --seed 0 --workers 2 --json floor.json
 """
 from __future__ import annotations
 
