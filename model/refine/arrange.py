@@ -39,8 +39,9 @@ H, V = 1, 2            # horizontal (the viewer's left-right) and vertical axes 
 
 def arrange_stated(obj: ArticulatedObject, spatial: Optional[dict]) -> list[str]:
     """Hold the rows and columns of ``spatial`` (``ExpectedStructure.spatial``: label ->
-    facts) in ``obj``'s boxes, in place, before the layout refinement. Returns what it did,
-    e.g. ["drawer: 3 x 2"] (rows x parts in the widest row)."""
+    facts), then its bands (above / below / left / right of the others), in ``obj``'s boxes,
+    in place, before the layout refinement. Returns what it did, e.g. ["drawer: 3 x 2",
+    "door left of drawer"] (rows x parts in the widest row)."""
     done = []
     for label, facts in (spatial or {}).items():
         grid = _grid(facts, sum(p.label == label for p in obj.parts))
