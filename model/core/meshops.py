@@ -157,6 +157,20 @@ def drop_degenerate(mesh: "trimesh.Trimesh", height: float = 1e-9) -> "trimesh.T
     return m if (m.is_watertight or not closed) else mesh
 
 
+def edge_pieces(mesh) -> tuple[np.ndarray, np.ndarray]:
+    """The pieces of a mesh whose faces share edges (what a reader sees as separate shells):
+    (piece label per face, surface area per piece)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    F = len(mesh.faces)
+    adj = np.asarray(mesh.face_adjacency)
+    g = coo_matrix((np.ones(len(adj)), (adj[:, 0], adj[:, 1])), shape=(F, F)) if len(adj) \
+        else coo_matrix((F, F))
+    n, labels = connected_components(g, directed=False)
+    return labels, np.bincount(labels, weights=np.asarray(mesh.area_faces), minlength=n)
+
+
 # ---------------------------------------------------------------------------------------------
 # measures
 # ---------------------------------------------------------------------------------------------

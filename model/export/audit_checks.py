@@ -186,17 +186,10 @@ def slide_angle_deg(obj: ArticulatedObject, k: int) -> float:
 def mesh_health(mesh, floater_area: float = 0.01) -> dict:
     """components, floater faces (in components under ``floater_area`` of the surface),
     watertight, faces of one mesh."""
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
     F = len(mesh.faces)
     if F == 0:
         return {"components": 0, "floater_faces": 0, "watertight": False, "faces": 0}
-    adj = np.asarray(mesh.face_adjacency)
-    g = coo_matrix((np.ones(len(adj)), (adj[:, 0], adj[:, 1])), shape=(F, F)) if len(adj) \
-        else coo_matrix((F, F))
-    n, labels = connected_components(g, directed=False)
-    area = np.bincount(labels, weights=np.asarray(mesh.area_faces), minlength=n)
+    labels, area = meshops.edge_pieces(mesh)
     small = area < floater_area * max(float(area.sum()), 1e-18)
-    return {"components": int(n), "floater_faces": int(np.isin(labels, np.where(small)[0]).sum()),
+    return {"components": len(area), "floater_faces": int(np.isin(labels, np.where(small)[0]).sum()),
             "watertight": bool(mesh.is_watertight), "faces": int(F)}

@@ -421,18 +421,10 @@ def _without_specks(mesh, share: float = 0.01):
     carved carcass) is its own shell once written, and a floater to anyone who loads it.
     Each piece of a closed mesh is closed, so dropping whole pieces keeps it closed."""
     import trimesh
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
 
-    F = len(mesh.faces)
-    adj = np.asarray(mesh.face_adjacency)
-    if F == 0 or len(adj) == 0:
+    if len(mesh.faces) == 0 or len(mesh.face_adjacency) == 0:
         return mesh
-    n, lab = connected_components(coo_matrix((np.ones(len(adj)), (adj[:, 0], adj[:, 1])),
-                                             shape=(F, F)), directed=False)
-    if n <= 1:
-        return mesh
-    area = np.bincount(lab, weights=np.asarray(mesh.area_faces), minlength=n)
+    lab, area = meshops.edge_pieces(mesh)
     keep = area >= share * float(area.sum())
     if keep.all():
         return mesh
