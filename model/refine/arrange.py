@@ -28,7 +28,7 @@ import numpy as np
 
 from model.core import ArticulatedObject
 
-from .layout import PANELS, SIDE_HINGED, _lohi, face_of
+from .layout import PANELS, SIDE_HINGED, _lohi, _move_subtree, face_of
 
 GAP_SHARE = 0.06       # of a cell's side, between neighbouring cells
 FRONT = 0              # the face normal of a front / back face (object frame: x forward)
@@ -230,13 +230,8 @@ def _lay_out(obj: ArticulatedObject, group: list[int], per_row: list[int]) -> bo
 def _place(obj: ArticulatedObject, i: int, centre: np.ndarray, size: np.ndarray) -> None:
     """Part ``i`` to the box (centre, size); its joint origin and its children follow the
     move of its centre (the layout refinement re-attaches them to its new face)."""
-    p = obj.parts[i]
-    move = centre - p.bbox_center
-    for c in obj.subtree(i):
-        q = obj.parts[c]
-        q.bbox_center = q.bbox_center + move
-        q.joint.origin = np.asarray(q.joint.origin, dtype=np.float64) + move
-    p.bbox_size = np.maximum(size, 1e-4)
+    _move_subtree(obj, i, centre - obj.parts[i].bbox_center)
+    obj.parts[i].bbox_size = np.maximum(size, 1e-4)
 
 
 def _mirror_if_opposite(obj: ArticulatedObject, group: list[int], side: str, ax: int) -> bool:

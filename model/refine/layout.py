@@ -251,22 +251,23 @@ def _seat_cap(obj: ArticulatedObject, i: int) -> bool:
     if (inner - plane) * up <= 0:
         return False                      # on or over its parent already
     shift = plane - inner - up * 0.25 * (hi[k] - lo[k])
+    across = [d for d in range(3) if d != k]
     centre = p.bbox_center.copy()
     centre[k] += shift
-    for d in range(3):
-        if d != k:
-            centre[d] = pc[d]
-    moved = centre - p.bbox_center
-    p.bbox_center = centre
-    for c in obj.subtree(i):
-        if c != i:
-            obj.parts[c].bbox_center = obj.parts[c].bbox_center + moved
-            obj.parts[c].joint.origin = np.asarray(obj.parts[c].joint.origin) + moved
+    centre[across] = pc[across]
+    _move_subtree(obj, i, centre - p.bbox_center)
     origin = np.asarray(p.joint.origin, dtype=np.float64).copy()
-    origin[[d for d in range(3) if d != k]] = centre[[d for d in range(3) if d != k]]
-    origin[k] += shift
+    origin[across] = centre[across]              # it turns about its own centre line
     p.joint.origin = origin
     return True
+
+
+def _move_subtree(obj: ArticulatedObject, i: int, move) -> None:
+    """Translate part ``i`` and every part below it (boxes and joint origins) by ``move``."""
+    for c in obj.subtree(i):
+        q = obj.parts[c]
+        q.bbox_center = q.bbox_center + move
+        q.joint.origin = np.asarray(q.joint.origin, dtype=np.float64) + move
 
 
 def _snap(obj: ArticulatedObject, deg: float) -> None:
