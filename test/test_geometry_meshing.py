@@ -41,13 +41,16 @@ def test_sphere_area_and_volume():
 
 
 def test_coarse_to_fine_matches_dense_near_surface():
-    values, _ = evaluate_grid(sphere(0.5), 1, 32)
+    # the unclosed band: every vertex within 1.5 cell diagonals holds the true value
+    values, _ = evaluate_grid(sphere(0.5), 1, 32, final_band=None)
     ax = torch.linspace(-1, 1, 33)
     X, Y, Z = torch.meshgrid(ax, ax, ax, indexing="ij")
     dense = torch.stack([X, Y, Z], -1).norm(dim=-1) - 0.5
     near = dense.abs() < 0.1
     assert torch.allclose(values[0][near], dense[near], atol=1e-5)
     assert torch.equal(values[0] < 0, dense < 0)
+    closed, _ = evaluate_grid(sphere(0.5), 1, 32)       # default: narrower, closed
+    assert torch.equal(closed[0] < 0, dense < 0)
 
 
 def test_thin_and_flat_boxes_are_watertight_and_batched():
@@ -98,8 +101,8 @@ def test_remove_islands_specks_and_bubbles():
     speck = lambda p: torch.minimum(p.norm(dim=-1) - 0.6,  # noqa: E731
                                     _grid_sdf(np.where(np.arange(33)[:, None, None] * 0 + (
                                         np.indices((33, 33, 33)) == 1).all(0), -0.05, 0.05), p))
-    r0 = mesh_sdf_batch(speck, 1, 32, min_island=0, band=1e9)[0]
-    r1 = mesh_sdf_batch(speck, 1, 32, band=1e9)[0]
+    r0 = mesh_sdf_batch(speck, 1, 32, min_island=0, band=1e9, final_band=None)[0]
+    r1 = mesh_sdf_batch(speck, 1, 32, band=1e9, final_band=None)[0]
     assert components(r0.mesh)[0] == 2 and components(r1.mesh)[0] == 1
     assert r0.inside[1, 1, 1] and not r1.inside[1, 1, 1]
     # a large separate piece is kept: islands are noise, fragments are damage
@@ -117,3 +120,26 @@ def _grid_sdf(v, p):
     n = v.shape[0] - 1
     ijk = ((p + 1) / 2 * n).round().long().clamp(0, n)
     return torch.from_numpy(v)[ijk[..., 0], ijk[..., 1], ijk[..., 2]].float()
+
+
+def test_final_band_closure_reads_only_true_values_at_the_surface():
+    # a thin slab and a small sphere: everything marching cubes reads (both ends of every
+    # edge that changes sign) must be the SDF's own value, with fewer evaluations than the
+    # unclosed 1.5 band
+    from model.geometry.meshing import _sign_edge_ends
+
+    def f(x):
+        slab = (x[..., 2] - 0.1).abs() - 0.03
+        ball = (x - torch.tensor([0.5, -0.4, -0.5])).norm(dim=-1) - 0.12
+        return torch.minimum(slab.clamp_min(-0.5), ball)
+
+    closed, n_closed = evaluate_grid(f, 1, 64)
+    wide, n_wide = evaluate_grid(f, 1, 64, final_band=None)
+    ax = torch.linspace(-1, 1, 65)
+    true = f(torch.stack(torch.meshgrid(ax, ax, ax, indexing="ij"), -1).reshape(1, -1, 3))
+    true = true.reshape(1, 65, 65, 65)
+    assert torch.equal(closed < 0, true < 0)
+    ends = _sign_edge_ends(closed < 0)
+    assert ends.any()
+    assert torch.allclose(closed[ends], true[ends], atol=1e-6)
+    assert int(n_closed) < 0.9 * int(n_wide)

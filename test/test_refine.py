@@ -105,6 +105,27 @@ def test_floaters_dropped_and_face_budget_kept():
     assert obj.parts[0].mesh.is_watertight
 
 
+@pytest.mark.parametrize("budget", [200_000, 12_000, 3_000, 900])
+def test_simplification_steps_made_ahead_stop_where_the_budget_loop_stops(budget):
+    # the meshing lanes make the first steps per part (prepare.py); refinement must still
+    # stop at the tolerance simplify_to_budget reaches on the same parts, and go on past
+    # the steps made ahead when the object needs them
+    from model.refine.meshes import simplify_to_budget
+    from model.refine.prepare import STEPS_AHEAD, prepare_mesh
+
+    obj = _meshed(_sloppy_cabinet())
+    obj.parts[0].mesh = trimesh.creation.icosphere(5, radius=0.5)
+    obj.parts[0].mesh.apply_translation((0, 0, 0.5))
+    prepared = {k: prepare_mesh(p.mesh) for k, p in enumerate(obj.parts)}
+    assert all(len(r.steps) == STEPS_AHEAD for r in prepared.values())
+    _, tol = simplify_to_budget({k: r.manifold() for k, r in prepared.items()},
+                                int(0.85 * budget))
+    rep = refine_meshes(obj, RefineConfig(face_budget=budget, carve=False, limits=False,
+                                          runners=False), prepared=prepared)
+    assert rep["simplify_tolerance"] == tol
+    assert rep["faces"] <= max(budget, 2000)
+
+
 def test_part_resolution_follows_metric_size():
     from model.pipeline.api import GenerationConfig
     from model.pipeline.generator import part_resolution

@@ -123,6 +123,27 @@ def to_trimesh(man) -> "trimesh.Trimesh":  # noqa: F821
     return trimesh.Trimesh(vertices=V, faces=F, process=False)
 
 
+def pack(man) -> tuple[np.ndarray, np.ndarray]:
+    """A Manifold as plain arrays (float64 vertices (N, 3), uint64 triangles (M, 3)) that
+    pickle between processes; :func:`unpack` rebuilds it with the same vertices."""
+    m = man.to_mesh64()
+    return (np.array(m.vert_properties, dtype=np.float64)[:, :3].copy(),
+            np.array(m.tri_verts, dtype=np.uint64))
+
+
+def unpack(packed: tuple[np.ndarray, np.ndarray]):
+    """:func:`pack`'s arrays -> a Manifold (empty for no triangles)."""
+    mf = _mf()
+    V, F = packed
+    if len(F) == 0:
+        return mf.Manifold()
+    man = mf.Manifold(mf.Mesh64(vert_properties=np.array(V, dtype=np.float64, order="C"),
+                                tri_verts=np.array(F, dtype=np.uint64, order="C")))
+    if not _ok(man):
+        raise NotWatertightError(f"packed mesh is not a closed manifold ({man.status().name})")
+    return man
+
+
 def separate_coincident(mesh: "trimesh.Trimesh", eps: float = 2e-6) -> "trimesh.Trimesh":  # noqa: F821
     """``mesh`` (a closed manifold's triangles, unmerged) with every vertex that shares its
     exact position with an earlier one moved ``eps`` into the solid along its normal. A

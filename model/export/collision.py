@@ -252,12 +252,14 @@ def occupancy_boxes(occ: np.ndarray, lo, hi, *, max_boxes: int = 32, coverage: f
     sat = np.zeros(tuple(s + 1 for s in occ.shape), dtype=np.int64)   # summed-volume table
     sat[1:, 1:, 1:] = occ.cumsum(0).cumsum(1).cumsum(2)
 
-    def full(a, b) -> bool:   # are (a ``layer_fill`` share of) the cells of [a, b) occupied?
-        (x0, y0, z0), (x1, y1, z1) = a, b
-        s = (sat[x1, y1, z1] - sat[x0, y1, z1] - sat[x1, y0, z1] - sat[x1, y1, z0]
-             + sat[x0, y0, z1] + sat[x0, y1, z0] + sat[x1, y0, z0] - sat[x0, y0, z0])
+    at = sat.item             # plain-int reads: ~5x faster than numpy scalar indexing here
+
+    def full(x0, y0, z0, x1, y1, z1) -> bool:   # are (``layer_fill`` of) [x0, x1) x ... occupied?
+        s = (at(x1, y1, z1) - at(x0, y1, z1) - at(x1, y0, z1) - at(x1, y1, z0)
+             + at(x0, y0, z1) + at(x0, y1, z0) + at(x1, y0, z0) - at(x0, y0, z0))
         return s >= layer_fill * (x1 - x0) * (y1 - y0) * (z1 - z0)
 
+    nx, ny, nz = occ.shape
     covered = np.zeros_like(occ)
     score = depth.astype(np.int64)
     boxes, done = [], 0
@@ -265,28 +267,24 @@ def occupancy_boxes(occ: np.ndarray, lo, hi, *, max_boxes: int = 32, coverage: f
         seed = int(np.argmax(score))
         if score.flat[seed] <= 0:
             break
-        a = list(np.unravel_index(seed, occ.shape))
-        b = [c + 1 for c in a]
+        x0, y0, z0 = (int(c) for c in np.unravel_index(seed, occ.shape))
+        x1, y1, z1 = x0 + 1, y0 + 1, z0 + 1
         grown = True
-        while grown:
+        while grown:          # one layer per side and round: -x, +x, -y, +y, -z, +z
             grown = False
-            for ax in range(3):
-                if a[ax] > 0:                                   # grow towards -ax
-                    na = list(a)
-                    na[ax] -= 1
-                    nb = list(b)
-                    nb[ax] = a[ax]
-                    if full(na, nb):
-                        a = na
-                        grown = True
-                if b[ax] < occ.shape[ax]:                       # grow towards +ax
-                    nb = list(b)
-                    nb[ax] += 1
-                    na = list(a)
-                    na[ax] = b[ax]
-                    if full(na, nb):
-                        b = nb
-                        grown = True
+            if x0 > 0 and full(x0 - 1, y0, z0, x0, y1, z1):
+                x0, grown = x0 - 1, True
+            if x1 < nx and full(x1, y0, z0, x1 + 1, y1, z1):
+                x1, grown = x1 + 1, True
+            if y0 > 0 and full(x0, y0 - 1, z0, x1, y0, z1):
+                y0, grown = y0 - 1, True
+            if y1 < ny and full(x0, y1, z0, x1, y1 + 1, z1):
+                y1, grown = y1 + 1, True
+            if z0 > 0 and full(x0, y0, z0 - 1, x1, y1, z0):
+                z0, grown = z0 - 1, True
+            if z1 < nz and full(x0, y0, z1, x1, y1, z1 + 1):
+                z1, grown = z1 + 1, True
+        a, b = (x0, y0, z0), (x1, y1, z1)
         sl = tuple(slice(i, j) for i, j in zip(a, b))
         new = int((occ[sl] & ~covered[sl]).sum())
         covered[sl] = True

@@ -21,7 +21,7 @@ import numpy as np
 import torch
 
 from .checkpoint import CheckpointError, load_checkpoint
-from .meshing import MeshResult, fit_to_bbox, mesh_sdf_batch
+from .meshing import MIN_ISLAND, MeshResult, SdfGrid, evaluate_grids, fit_to_bbox, mesh_grid
 
 log = logging.getLogger(__name__)
 
@@ -147,7 +147,7 @@ class ShapeModel:
     # -- meshing --------------------------------------------------------------------------
     @torch.inference_mode()
     def decode(self, z: torch.Tensor, resolution=64, part_batch: int = 1,
-               **kw) -> list[MeshResult]:
+               min_island: int = MIN_ISLAND, **kw) -> list[MeshResult]:
         """z (B, Z) -> one MeshResult per part (mesh in the unit cube, status, evaluations).
 
         ``resolution``: cells per side for every part, or a sequence of one per part (then
@@ -156,15 +156,22 @@ class ShapeModel:
         different numbers of evaluations, and padding them to one batch measured 2x slower
         per part than one part at a time).
         """
+        return [mesh_grid(g, min_island) for g in self.decode_grids(z, resolution, part_batch, **kw)]
+
+    @torch.inference_mode()
+    def decode_grids(self, z: torch.Tensor, resolution=64, part_batch: int = 1,
+                     **kw) -> list[SdfGrid]:
+        """The network's half of :meth:`decode`: each part's SDF on its vertex grid, for
+        meshing elsewhere (``model.geometry.surface.mesh_grid``, in any process)."""
         planes = self.ae.decode_planes(z.float())                        # (B, 3, C, R, R)
         per_part = np.ndim(resolution) > 0
         if per_part:
             part_batch = 1
-        out: list[MeshResult] = []
+        out: list[SdfGrid] = []
         for i in range(0, z.shape[0], part_batch):
             pl = planes[i:i + part_batch]
             res = int(resolution[i]) if per_part else int(resolution)
-            out += mesh_sdf_batch(lambda xyz, pl=pl: self.ae.query(pl, xyz), pl.shape[0],
+            out += evaluate_grids(lambda xyz, pl=pl: self.ae.query(pl, xyz), pl.shape[0],
                                   res, **kw)
         return out
 

@@ -155,6 +155,8 @@ def run_child(cfg: BenchConfig, loader: Optional[Callable] = None) -> dict:
             "parts_median": float(np.median(parts)) if parts else None,
             "to_urdf_by_parts": by_parts,
             "peak_rss_mb": _rss_mb(), "rss_before_load_mb": rss_before,
+            "mesh_workers": getattr(getattr(gen, "parts", None), "workers", 0),
+            "helpers_peak_rss_mb": (gen.parts.peak_rss_mb() if hasattr(gen, "parts") else 0.0),
             "rss_after_load_mb": rss_load, "failures": failures, "per_prompt": timings}
 
 

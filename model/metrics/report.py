@@ -150,4 +150,8 @@ def bench_markdown(bench: dict) -> str:
     lines.append(f"Model load: {bench['load_seconds']:.2f} s. Peak memory (RSS high-water "
                  f"mark of the benchmark process): {bench['peak_rss_mb']:.0f} MB "
                  f"(after load: {bench.get('rss_after_load_mb', 0):.0f} MB).")
+    if bench.get("mesh_workers"):
+        lines.append(f"Meshing helpers: {bench['mesh_workers']}, peak "
+                     f"{bench.get('helpers_peak_rss_mb', 0):.0f} MB together; with the "
+                     f"benchmark process {bench['peak_rss_mb'] + bench.get('helpers_peak_rss_mb', 0):.0f} MB.")
     return "\n".join(lines) + "\n"

@@ -56,6 +56,10 @@ class GenerationConfig:
     collision: str = "auto"            # auto | cells | vhacd | hull | none (model.export.collision)
     device: str = "cpu"
     threads: int = 2                   # torch threads for SDF meshing and image encoding
+    mesh_workers: int = -1             # helper processes that finish parts (marching cubes,
+                                       # manifolds, simplification) beside this one
+                                       # (part_pool.py); -1: one per core beyond the first, at
+                                       # most 3; 0: all in this process
     token_threads: int = 1             # ... for the token-sized networks (text, decoding, DDIM);
                                        # one thread is ~3x faster there on 2 cores (core.runtime)
     max_nodes: int = 32

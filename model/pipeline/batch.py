@@ -27,7 +27,8 @@ recorded as an error. At the end the manifest is rewritten with one line per job
 order.
 
 Each worker process loads the model once; with one worker the jobs run in the calling
-process. Torch threads per worker default to ``max(1, cpu_count // workers)``.
+process. Torch threads per worker default to ``max(1, cpu_count // workers)``, and with
+several workers each finishes its parts itself (no meshing helpers, ``mesh_workers`` 0).
 """
 from __future__ import annotations
 
@@ -311,6 +312,8 @@ def run_batch(prompts: Sequence[str], out_dir: os.PathLike, *, samples: int = 1,
     if todo:
         if config.threads == GenerationConfig().threads:   # left at the default: share the cores
             config = replace(config, threads=min(64, max(1, (os.cpu_count() or 1) // workers)))
+        if workers > 1 and config.mesh_workers < 0:        # the workers already fill the cores
+            config = replace(config, mesh_workers=0)
         _clean_partial(root)
         _end_with_newline(manifest)
         if workers == 1:                        # in this process: no spawn, no second import

@@ -27,6 +27,7 @@ from model.core.runtime import keep_heap_mapped, torch_threads
 from model.pipeline.api import (ExportResult, GeneratedObject, GenerationConfig,
                                 GenerationError)
 # checkpoint discovery and request checks, re-exported from their modules
+from model.pipeline.part_pool import PartPool, default_workers
 from model.pipeline.checkpoints import (STAGES, WEIGHTS_DIR, check_codebooks,  # noqa: F401
                                         file_digest, find_checkpoints)
 from model.pipeline.validate import MAX_PROMPT_CHARS, check_prompt, validate_config  # noqa: F401
@@ -51,6 +52,12 @@ class Generator:
         self.shape = shape                 # model.geometry.ShapeModel
         self.image_model = image_model     # model.imaging.model.ImageArticulationModel | None
         self.loaded = loaded or _Loaded(paths={})
+        workers = config.mesh_workers if config.mesh_workers >= 0 else default_workers()
+        self.parts = PartPool(workers)     # meshing lanes (part_pool.py)
+
+    def close(self) -> None:
+        """Stop the meshing helpers (also done when the generator is collected)."""
+        self.parts.close()
 
     # -- loading ----------------------------------------------------------------------------
     @classmethod
@@ -89,7 +96,9 @@ class Generator:
         loaded = _Loaded(paths=paths, hashes={k: file_digest(p) for k, p in paths.items() if p},
                          load_seconds=time.perf_counter() - t0)
         log.info("model loaded in %.2f s from %s", loaded.load_seconds, paths["transformer"].parent)
-        return cls(config, articulation, shape, image_model, loaded)
+        gen = cls(config, articulation, shape, image_model, loaded)
+        gen.parts.start()                       # helpers import now, not on request 1
+        return gen
 
     @property
     def supports_image(self) -> bool:
@@ -257,8 +266,8 @@ class Generator:
         import torch
         import trimesh
 
-        from model.geometry import fit_to_bbox
         from model.geometry.data import label_text
+        from model.pipeline.part_finish import PartTask
 
         cfg = self.config
         refine_s, refined = 0.0, {}
@@ -284,18 +293,23 @@ class Generator:
         t = time.perf_counter()
         with torch_threads(cfg.threads):
             res = [part_resolution(obj.parts[k].bbox_size, cfg) for k in new]
-            decoded = self.shape.decode(z, resolution=res) if new else []
-        fallbacks = []
-        for k, r in zip(new, decoded):
+            grids = self.shape.decode_grids(z, resolution=res) if new else []
+        tasks = [PartTask(k, g, obj.parts[k].bbox_center, obj.parts[k].bbox_size,
+                          prepare=cfg.refine, simplify=cfg.face_budget > 0)
+                 for k, g in zip(new, grids)]
+        fallbacks, prepared = [], {}
+        for k, d in zip(new, self.parts.finish(tasks)):
             part = obj.parts[k]
-            if not r.ok:
+            if not d.ok:
                 # No surface in the decoded field: keep the part usable as its box.
                 fallbacks.append(part.name)
                 m = trimesh.creation.box(extents=np.maximum(part.bbox_size, 1e-3))
                 m.apply_translation(part.bbox_center)
             else:
-                m = fit_to_bbox(r.mesh, part.bbox_center, part.bbox_size)
-                part.collision = _collision_boxes(r, m)
+                m = d.mesh()
+                part.collision = d.collision()
+                if d.prepared is not None:
+                    prepared[k] = d.prepared
             part.mesh = m
             part.latent = z[new.index(k)].numpy().copy()
         if keep is not None:
@@ -316,7 +330,7 @@ class Generator:
             t = time.perf_counter()
             kept = frozenset(k for k in range(tree.num_nodes) if len(tree.kept) and tree.kept[k])
             refined["meshes"] = refine_meshes(obj, RefineConfig(face_budget=cfg.face_budget),
-                                              frozen=kept)
+                                              frozen=kept, prepared=prepared)
             refine_s += time.perf_counter() - t
             timings["refine"] = refine_s
             obj.metadata["refine"] = refined
@@ -377,29 +391,6 @@ def _keep_hinge_sides(obj: ArticulatedObject, sides: Optional[list]) -> None:
             continue
         tok = set_hinge(part.token(), side)
         part.joint.origin, part.joint.axis = tok[6:9].copy(), tok[9:12].copy()
-
-
-def _collision_boxes(r, fitted, max_boxes: int = 32, min_coverage: float = 0.0,
-                     layer_fill: float = 0.8):
-    """Collision boxes of a generated part from its SDF cell occupancy (``r.inside`` over the
-    meshing cube), mapped by the same per-axis scale and shift that fitted the mesh to its
-    box. Box-like parts (panels, carcasses, drawers) come out as a few exact boxes in
-    milliseconds; when ``max_boxes`` cannot cover ``min_coverage`` of the solid (round
-    shapes), None leaves the choice to the exporter (hull if convex, else V-HACD)."""
-    from model.export.collision import occupancy_boxes
-
-    if r.inside is None or not r.inside.any():
-        return None
-    lo_m, hi_m = np.asarray(r.mesh.bounds, dtype=np.float64)
-    lo_f, hi_f = np.asarray(fitted.bounds, dtype=np.float64)
-    scale = (hi_f - lo_f) / np.maximum(hi_m - lo_m, 1e-9)
-    bound = r.bound
-    # vertex v of the (n+1)^3 grid owns the cell [v - h/2, v + h/2]^3 (its dual cell)
-    half = bound + bound / (r.inside.shape[0] - 1)
-    lo = (-half - (lo_m + hi_m) / 2.0) * scale + (lo_f + hi_f) / 2.0
-    hi = (half - (lo_m + hi_m) / 2.0) * scale + (lo_f + hi_f) / 2.0
-    boxes, covered = occupancy_boxes(r.inside, lo, hi, max_boxes=max_boxes, layer_fill=layer_fill)
-    return boxes if boxes and covered >= min_coverage else None
 
 
 def part_resolution(size, cfg: GenerationConfig) -> int:

@@ -43,6 +43,8 @@ def validate_config(cfg: GenerationConfig) -> None:
          f"collision must be auto|cells|vhacd|hull|none, got {cfg.collision!r}"),
         (cfg.device == "cpu", f"device {cfg.device!r} is not supported; this build runs on the CPU"),
         (1 <= cfg.threads <= 64, f"threads must be in [1, 64], got {cfg.threads}"),
+        (-1 <= cfg.mesh_workers <= 64,
+         f"mesh_workers must be -1 (one per core beyond the first) or 0..64, got {cfg.mesh_workers}"),
         (1 <= cfg.token_threads <= 64, f"token_threads must be in [1, 64], got {cfg.token_threads}"),
         (1 <= cfg.max_nodes <= 64, f"max_nodes must be in [1, 64], got {cfg.max_nodes}"),
         (cfg.face_budget >= 0, f"face_budget must be >= 0, got {cfg.face_budget}"),

@@ -34,19 +34,38 @@ class RefineConfig:
 
 
 def refine_meshes(obj: ArticulatedObject, config: Optional[RefineConfig] = None,
-                  frozen: frozenset = frozenset()) -> dict:
+                  frozen: frozenset = frozenset(), prepared: Optional[dict] = None) -> dict:
     """Floaters, simplification, carving, joint limits on ``obj``'s meshes (in place).
-    Parts whose index is in ``frozen`` (kept parts of an edit) keep their meshes."""
+    Parts whose index is in ``frozen`` (kept parts of an edit) keep their meshes.
+    ``prepared``: part index -> :class:`~model.refine.prepare.PreparedMesh` already made
+    from that part's current mesh (the pipeline makes them while meshing); the other parts
+    are prepared here."""
     from . import meshes as M
+    from .prepare import STEPS_AHEAD, prepare_mesh
 
     cfg = config or RefineConfig()
     t0 = time.perf_counter()
-    mans = {k: m for k, m in M.manifolds_of(obj).items() if k not in frozen}
-    report: dict = {}
-    if cfg.floaters:
-        mans = {k: M.drop_floaters(m) for k, m in mans.items()}
-    # 15 % headroom: carving adds faces after simplifying
-    mans, report["simplify_tolerance"] = M.simplify_to_budget(mans, int(0.85 * cfg.face_budget))
+    budget = int(0.85 * cfg.face_budget)     # 15 % headroom: carving adds faces after simplifying
+    ready = {}
+    for k, p in enumerate(obj.parts):
+        if k in frozen or p.mesh is None or not len(p.mesh.faces):
+            continue
+        ready[k] = (prepared or {}).get(k) or prepare_mesh(p.mesh, cfg.floaters,
+                                                            STEPS_AHEAD if budget > 0 else 0)
+    report: dict = {"simplify_tolerance": 0.0}
+    # simplify_to_budget's steps: each taken while the object is over budget; the first
+    # ones are made per part already (prepare.py), the rest need every part here
+    level, ahead = -1, min((len(r.steps) for r in ready.values()), default=0)
+    while budget > 0 and sum(r.faces(level) for r in ready.values()) > budget:
+        if level + 1 >= ahead:
+            break
+        level += 1
+        report["simplify_tolerance"] = M.SIMPLIFY_STEPS[level]
+    mans = {k: r.manifold(level) for k, r in ready.items()}
+    if level + 1 == ahead and level + 1 < len(M.SIMPLIFY_STEPS):
+        mans, tol = M.simplify_to_budget(mans, budget, M.SIMPLIFY_STEPS[level + 1:],
+                                         fine=M.FINE_STEPS if level < 0 else ())
+        report["simplify_tolerance"] = tol or report["simplify_tolerance"]
     if cfg.floaters and report["simplify_tolerance"]:
         mans = {k: M.drop_floaters(m) for k, m in mans.items()}   # simplifying can split
     if cfg.carve:

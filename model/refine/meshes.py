@@ -50,12 +50,20 @@ def simplify_to_budget(mans: dict, budget: int, tolerances=SIMPLIFY_STEPS,
             break
         nxt = {}
         for k, m in out.items():
-            s = _simplified(m, tol)
-            if s is None and step == 0:
-                s = next((f for f in (_simplified(m, t) for t in fine) if f is not None), None)
+            s = first_step(m, tol, fine) if step == 0 else _simplified(m, tol)
             nxt[k] = m if s is None else s
         out, used = nxt, tol
     return out, used
+
+
+def first_step(m, tol: float = SIMPLIFY_STEPS[0], fine=FINE_STEPS):
+    """The first simplification step of one part (:func:`simplify_to_budget`): ``m`` at
+    ``tol``, else at the first of the ``fine`` tolerances that keeps it; None when none
+    does."""
+    s = _simplified(m, tol)
+    if s is None:
+        s = next((f for f in (_simplified(m, t) for t in fine) if f is not None), None)
+    return s
 
 
 def _simplified(m, tol: float):
@@ -450,5 +458,5 @@ def _merged_closed(mesh) -> bool:
     return bool(m.is_watertight)
 
 
-__all__ = ["revolved_sweep", "vessel_collision", "add_runners", "round_collision", "drop_floaters", "simplify_to_budget", "carve_parents", "carve_collision", "shrink_limits",
+__all__ = ["revolved_sweep", "vessel_collision", "add_runners", "round_collision", "drop_floaters", "simplify_to_budget", "first_step", "carve_parents", "carve_collision", "shrink_limits",
            "swept_hull", "manifolds_of", "store"]
