@@ -64,3 +64,22 @@ def test_shipped_image_model_reads_rendered_examples(gen, tmp_path):
     out = gen.export(res, tmp_path / "from_image", preview=False)
     rep = check_urdf(out.urdf_path, res.obj)
     assert rep.ok, rep.summary()
+
+
+def test_carved_parts_are_written_closed(tmp_path):
+    """The swivel cap carves the stick's body; exact booleans leave coincident vertices and
+    needle faces there, which the export collapses so the written OBJ reads back closed."""
+    import trimesh
+
+    from model.pipeline.generator import Generator
+    g = Generator.load(GenerationConfig())
+    try:
+        [res] = g.generate("a memory stick with a swivel cap", seed=0)
+        assert "body_0" in res.obj.metadata["refine"]["meshes"]["carved"]
+        out = g.export(res, tmp_path / "usb", preview=False)
+        for p in res.obj.parts:
+            back = trimesh.load(tmp_path / "usb" / "meshes" / f"{p.name}.obj", force="mesh")
+            assert back.is_watertight, p.name
+        assert out.urdf_path
+    finally:
+        g.close()

@@ -420,7 +420,22 @@ def manifolds_of(obj: ArticulatedObject) -> dict:
 
 def store(obj: ArticulatedObject, mans: dict) -> None:
     for i, m in mans.items():
-        obj.parts[i].mesh = _without_specks(_closed_on_export(meshops.to_trimesh(m)))
+        obj.parts[i].mesh = _without_specks(_exportable(m))
+
+
+def _exportable(man):
+    """A refined part's mesh as written (:func:`_closed_on_export`). Exact booleans can leave
+    vertices that share a position and needle faces that no cleanup of the triangles
+    closes; simplifying the manifold by 0.1, then 1 micrometre collapses them first (a
+    generated USB body carved by its swivel cap: 3 open edges before, closed after)."""
+    out = _closed_on_export(meshops.to_trimesh(man))
+    if _merged_closed(out):
+        return out
+    for tol in (1e-7, 1e-6):
+        alt = _closed_on_export(meshops.to_trimesh(man.simplify(tol)))
+        if _merged_closed(alt):
+            return alt
+    return out
 
 
 def _without_specks(mesh, share: float = 0.01):

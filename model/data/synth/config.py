@@ -13,8 +13,10 @@ CATEGORY_WEIGHTS: dict[str, float] = {"StorageFurniture": 0.34, "Safe": 0.12, "O
 # object also passes the geometric checks of the sim-ready audit (model.export.simready:
 # interpenetration over the per-joint sweeps, hinges, drawer axes, mesh health) or is redrawn;
 # synth-5: objects of at most three parts (bottles, USB sticks) also pass the audit's MuJoCo
-# check (a swivel cap resting on the floor could spin its free stick around).
-GENERATOR_VERSION = "synth-5"
+# check (a swivel cap resting on the floor could spin its free stick around); synth-6: so do
+# objects with a door or lid on a horizontal hinge (a drop-down oven door with its tray
+# pulled out could walk the free base 4 cm).
+GENERATOR_VERSION = "synth-6"
 
 
 @dataclass
@@ -31,6 +33,9 @@ class SynthConfig:
     audit_physics: bool = False      # ... and its MuJoCo check for every draw (slow: export)
     audit_physics_parts: int = 3     # ... objects with at most this many parts always get the
                                      # MuJoCo check (about 0.5 s each; synth-5); 0: none
+    audit_physics_swing: bool = True  # ... and objects with a door or lid hinged about a
+                                     # horizontal axis: its weight swings fore and aft
+                                     # (about 1 s each, a third of the objects; synth-6)
 
 
 class GenerationRejected(RuntimeError):

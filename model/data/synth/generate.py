@@ -7,7 +7,7 @@ from typing import Callable, Iterator, Optional
 
 import numpy as np
 
-from model.core.objects import ArticulatedObject
+from model.core.objects import ArticulatedObject, JointType
 
 from .builder import _Builder
 from .cabinets import _gen_oven, _gen_safe, _gen_storage
@@ -66,7 +66,8 @@ def generate_object(seed: int = 0, index: int = 0, config: Optional[SynthConfig]
                                manifolds=mans, stop_early=True)
             if rep.ok:
                 obj.validate()
-                physics = cfg.audit_physics or len(obj.parts) <= cfg.audit_physics_parts
+                physics = (cfg.audit_physics or len(obj.parts) <= cfg.audit_physics_parts
+                           or (cfg.audit_physics_swing and swings_fore_and_aft(obj)))
                 failures = _audit_failures(obj, physics) if cfg.audit else []
                 if not failures:
                     return obj
@@ -84,6 +85,13 @@ def generate_object(seed: int = 0, index: int = 0, config: Optional[SynthConfig]
                 _shrink(obj.parts[k].joint, 0.7)
         log.debug("%s seed %d index %d attempt %d rejected: %s", cat, seed, index, attempt, last)
     raise GenerationRejected(f"no valid {cat} for seed {seed} index {index}: {last}")
+
+
+def swings_fore_and_aft(obj: ArticulatedObject) -> bool:
+    """A door or lid on a revolute joint whose axis is within 60 degrees of horizontal."""
+    return any(p.label in ("door", "lid") and p.joint.type == JointType.REVOLUTE
+               and abs(float(np.asarray(p.joint.axis, dtype=float)[2])) < 0.5
+               for p in obj.parts)
 
 
 def generate_objects(n: int, seed: int = 0, config: Optional[SynthConfig] = None,
