@@ -58,6 +58,9 @@ PARAMS: tuple[ParamSpec, ...] = (
               read_only=True, choices=("cpu",)),
     ParamSpec("threads", 2, "torch CPU threads used by generation",
               read_only=True, int_range=(1, 64)),
+    ParamSpec("mesh_workers", -1, "helper processes that finish the parts' meshes beside the "
+              "node (GenerationConfig.mesh_workers); -1 = one per core beyond the first, at "
+              "most 3; 0 = none", read_only=True, int_range=(-1, 64)),
     ParamSpec("seed", -1, "seed of requests that do not give one; -1 = a fresh random seed "
               "per request", int_range=(-1, 2**31 - 1)),
     ParamSpec("samples", 1, "objects generated per request (the first is published on "
@@ -136,6 +139,7 @@ class NodeSettings:
     frame_images: bool = True
     device: str = "cpu"
     threads: int = 2
+    mesh_workers: int = -1
     seed: int = -1
     samples: int = 1
     queue_size: int = 4
@@ -170,5 +174,6 @@ class NodeSettings:
         return GenerationConfig(checkpoint=self.checkpoint or None, resolution=self.resolution,
                                 steps=self.steps, guidance=self.guidance,
                                 mesh_format=self.mesh_format, device=self.device,
-                                threads=self.threads, frame_images=self.frame_images,
+                                threads=self.threads, mesh_workers=self.mesh_workers,
+                                frame_images=self.frame_images,
                                 refine=self.refine, prompt_structure=self.prompt_structure)

@@ -1,7 +1,8 @@
 """Audit the procedural data floor: draw objects 0..N-1 of a seed with the current generator
-(synth-5: every draw passes the audit's geometric checks, objects of up to three parts its
-MuJoCo check too) and audit each one again; the first --physics of them also in MuJoCo (each
-is exported with its collision geometry, which takes seconds per object).
+(synth-6: every draw passes the audit's geometric checks; objects of up to three parts, and
+those with a door or lid on a horizontal hinge, its MuJoCo check too) and audit each one
+again; the first --physics of them also in MuJoCo (each is exported with its collision
+geometry, which takes seconds per object).
 
     python scripts/audit_floor.py --n 200 --physics 200 --seed 0 --workers 2 --json floor.json
 """

@@ -233,6 +233,16 @@ def _read(f, timeout: Optional[float]):
 def _serve() -> None:
     """The helper's loop: parts in, finished parts out, until stdin closes."""
     import traceback
+
+    # what finishing a part needs, imported now (while the caller loads its model), not
+    # during the first object
+    import manifold3d  # noqa: F401
+    import scipy.ndimage  # noqa: F401
+    import skimage.measure  # noqa: F401
+    import trimesh  # noqa: F401
+
+    import model.export.collision  # noqa: F401
+    import model.refine.prepare  # noqa: F401
     out = os.fdopen(os.dup(1), "wb")
     os.dup2(2, 1)                    # stray prints from libraries go to stderr, not the pipe
     inp = sys.stdin.buffer
