@@ -18,7 +18,6 @@ faces and its pieces add at most ``cells_max_excess`` of the volume, else V-HACD
 from __future__ import annotations
 
 import heapq
-import itertools
 import logging
 from dataclasses import dataclass
 
@@ -191,8 +190,12 @@ def cells_decompose(mesh, cfg: CollisionConfig | None = None) -> list:
                     pieces[len(pieces)] = (comp, v, h, np.asarray(h.bounding_box()))
     next_id = len(pieces)
 
-    def touching(a: np.ndarray, b: np.ndarray) -> bool:
-        return not np.any((a[:3] > b[3:] + 1e-7) | (b[:3] > a[3:] + 1e-7))
+    def touching(ids: list, b: np.ndarray) -> list:     # the pieces whose bounds meet b's
+        if not ids:
+            return []
+        B = np.stack([pieces[o][3] for o in ids])
+        apart = (B[:, :3] > b[3:] + 1e-7).any(1) | (b[:3] > B[:, 3:] + 1e-7).any(1)
+        return [o for o, x in zip(ids, apart) if not x]
 
     heap: list = []
 
@@ -202,8 +205,9 @@ def cells_decompose(mesh, cfg: CollisionConfig | None = None) -> list:
         extra = u.volume() - a[1] - b[1]
         heapq.heappush(heap, (extra / (a[1] + b[1]), i, j, u))
 
-    for i, j in itertools.combinations(list(pieces), 2):
-        if touching(pieces[i][3], pieces[j][3]):
+    ids = list(pieces)
+    for k, i in enumerate(ids):          # every touching pair (i, j), i before j, in order
+        for j in touching(ids[k + 1:], pieces[i][3]):
             push(i, j)
     while heap:  # cheapest merge first; stop when the next one bulges and we are under budget
         rel, i, j, u = heapq.heappop(heap)
@@ -213,9 +217,8 @@ def cells_decompose(mesh, cfg: CollisionConfig | None = None) -> list:
             break
         a, b = pieces.pop(i), pieces.pop(j)
         pieces[next_id] = (a[0] + b[0], a[1] + b[1], u, np.asarray(u.bounding_box()))
-        for o in list(pieces):
-            if o != next_id and touching(pieces[o][3], pieces[next_id][3]):
-                push(o, next_id)
+        for o in touching([o for o in pieces if o != next_id], pieces[next_id][3]):
+            push(o, next_id)
         next_id += 1
     if len(pieces) > cfg.max_hulls:  # pieces that touch nothing cannot merge: keep the largest
         keep = sorted(pieces.values(), key=lambda p: -p[1])[:cfg.max_hulls]
