@@ -126,6 +126,62 @@ def test_simplification_steps_made_ahead_stop_where_the_budget_loop_stops(budget
     assert rep["faces"] <= max(budget, 2000)
 
 
+def _small_fronts() -> ArticulatedObject:
+    """A decoded-like cabinet front: a door on the left and three small drawers (two stacked,
+    one beside them) in the middle of a 0.9 x 1.0 m face, gaps everywhere."""
+    def drawer(name, y, z, h):
+        return _part(name, "drawer", 0, (0.4, 0.16, h), (0.05, y, z),
+                     Joint(JointType.PRISMATIC, (0.25, y, z), (1, 0, 0), t_range=(0, 0.3)))
+    return ArticulatedObject(category="StorageFurniture", name="fronts", parts=[
+        _part("body_0", "body", -1, (0.5, 0.9, 1.0), (0, 0, 0.5)),
+        _part("door_0", "door", 0, (0.02, 0.45, 0.55), (0.24, -0.2, 0.5),
+              Joint(JointType.REVOLUTE, (0.25, -0.42, 0.5), (0, 0, 1), r_range=(0, 1.6))),
+        drawer("drawer_0", 0.13, 0.62, 0.25),
+        drawer("drawer_1", 0.13, 0.36, 0.2),
+        drawer("drawer_2", 0.32, 0.5, 0.3),
+        _part("handle_0", "handle", 2, (0.03, 0.1, 0.02), (0.27, 0.13, 0.62)),
+    ])
+
+
+def test_storage_fronts_grow_to_tile_their_face():
+    from model.refine.layout import GAP
+    from model.refine.siblings import FRAME
+    obj = _small_fronts()
+    before = {p.name: p.bbox_size.copy() for p in obj.parts}
+    low = min(p.bbox_center[2] - p.bbox_size[2] / 2 for p in obj.parts[1:5])
+    rep = refine_layout(obj)
+    fronts = obj.parts[1:5]
+    assert rep["filled"] == 4 and _structure(obj) == _structure(_small_fronts())
+    for p in fronts:                                   # nothing shrinks
+        assert np.all(p.bbox_size >= before[p.name] - 1e-9)
+    for n, a in enumerate(fronts):                     # and nothing overlaps
+        for b in fronts[n + 1:]:
+            assert not _boxes_overlap(a, b), (a.name, b.name)
+    lo = np.min([p.bbox_center - p.bbox_size / 2 for p in fronts], axis=0)
+    hi = np.max([p.bbox_center + p.bbox_size / 2 for p in fronts], axis=0)
+    assert lo[1] == pytest.approx(-0.45 + FRAME) and hi[1] == pytest.approx(0.45 - FRAME)
+    assert hi[2] == pytest.approx(1.0 - FRAME) and lo[2] == pytest.approx(low)   # plinth kept
+    covered = sum(p.bbox_size[1] * p.bbox_size[2] for p in fronts)
+    assert covered > 0.97 * (hi[1] - lo[1]) * (hi[2] - lo[2])
+    stacked = [obj.parts[2], obj.parts[3]]             # the stacked pair meets in the middle
+    gap = (stacked[0].bbox_center[2] - stacked[0].bbox_size[2] / 2) - \
+        (stacked[1].bbox_center[2] + stacked[1].bbox_size[2] / 2)
+    assert gap == pytest.approx(GAP, abs=1e-6)
+    # the handle moved with its drawer's centre and is still on its front
+    h, d = obj.parts[5], obj.parts[2]
+    assert h.bbox_center[2] == pytest.approx(d.bbox_center[2], abs=1e-6)
+    # the hinge is on the grown door's outer edge
+    door = obj.parts[1]
+    assert door.joint.origin[1] == pytest.approx(door.bbox_center[1] - door.bbox_size[1] / 2,
+                                                 abs=0.02)
+
+
+def test_fronts_of_other_categories_are_not_grown():
+    obj = _small_fronts()
+    obj.category = "Oven"
+    assert refine_layout(obj).get("filled", 0) == 0
+
+
 def test_part_resolution_follows_metric_size():
     from model.pipeline.api import GenerationConfig
     from model.pipeline.generator import part_resolution

@@ -54,6 +54,7 @@ class LayoutConfig:
     align: bool = True
     separate: bool = True
     joints: bool = True
+    fill: bool = True              # storage fronts: doors and drawers fill the gaps between them
     snap_deg: float = 25.0
 
 
