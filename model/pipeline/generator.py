@@ -26,8 +26,8 @@ from model.core import ArticulatedObject, ObjectValidationError
 from model.core.runtime import keep_heap_mapped, torch_threads
 from model.pipeline.api import (ExportResult, GeneratedObject, GenerationConfig,
                                 GenerationError)
-# checkpoint discovery and request checks, re-exported from their modules
 from model.pipeline.part_pool import PartPool, default_workers
+# checkpoint discovery and request checks, re-exported from their modules
 from model.pipeline.checkpoints import (STAGES, WEIGHTS_DIR, check_codebooks,  # noqa: F401
                                         file_digest, find_checkpoints)
 from model.pipeline.validate import MAX_PROMPT_CHARS, check_prompt, validate_config  # noqa: F401
