@@ -14,6 +14,8 @@ from typing import Any, Callable, Optional
 
 import numpy as np
 
+from model.core.runtime import proc_memory_kb  # noqa: F401  (part of this module's API)
+
 LOCALHOST_ENV = {"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
 
 
@@ -194,17 +196,6 @@ def start_node(params: dict[str, Any], *, env: Optional[dict] = None,
     finally:
         if log_path:
             out.close()
-
-
-def proc_memory_kb(pid: int) -> dict[str, int]:
-    """VmRSS (current) and VmHWM (peak) of a process in kB, from /proc (Linux)."""
-    out = {}
-    with open(f"/proc/{pid}/status") as f:
-        for line in f:
-            if line.startswith(("VmRSS:", "VmHWM:")):
-                key, value = line.split(":", 1)
-                out[key] = int(value.split()[0])
-    return out
 
 
 def stop_node(proc: subprocess.Popen, timeout: float = 30.0, sig: int = 2) -> int:

@@ -9,7 +9,8 @@ sets the count for one stage and restores the previous one.
 
 ``keep_heap_mapped`` stops glibc from mapping and unmapping the multi-MB buffers of every
 meshing chunk (page faults on each fresh buffer); ``release_free_memory`` returns the heap
-after each request instead.
+after each request instead. ``proc_memory_kb`` reads a process's current and peak resident
+memory.
 """
 from __future__ import annotations
 
@@ -104,3 +105,14 @@ def map_jobs(fn, jobs: list, workers: int = 1, chunksize: int = 4) -> Iterator:
             yield from pool.imap_unordered(fn, jobs, chunksize=chunksize)
     else:
         yield from map(fn, jobs)
+
+
+def proc_memory_kb(pid="self") -> dict[str, int]:
+    """VmRSS (current) and VmHWM (peak) of a process in kB, from /proc (Linux)."""
+    out = {}
+    with open(f"/proc/{pid}/status") as f:
+        for line in f:
+            if line.startswith(("VmRSS:", "VmHWM:")):
+                key, value = line.split(":", 1)
+                out[key] = int(value.split()[0])
+    return out

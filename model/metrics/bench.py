@@ -51,14 +51,11 @@ def _rss_mb() -> float:
 
 
 def _current_rss_mb() -> float:
+    from model.core.runtime import proc_memory_kb
     try:
-        with open("/proc/self/status") as f:
-            for line in f:
-                if line.startswith("VmRSS:"):
-                    return int(line.split()[1]) / 1024.0
-    except OSError:
-        pass
-    return float("nan")
+        return proc_memory_kb()["VmRSS"] / 1024.0
+    except (OSError, KeyError):
+        return float("nan")
 
 
 def _cpu_name() -> str:

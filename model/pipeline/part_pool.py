@@ -29,6 +29,8 @@ import time
 from pathlib import Path
 from typing import Optional
 
+from model.core.runtime import proc_memory_kb
+
 from .part_finish import PartTask, finish_parts
 
 log = logging.getLogger(__name__)
@@ -168,10 +170,8 @@ class PartPool:
             if h is None or not h.alive():
                 continue
             try:
-                with open(f"/proc/{h.proc.pid}/status") as f:
-                    total += next(int(line.split()[1]) for line in f
-                                  if line.startswith("VmHWM:")) / 1024.0
-            except (OSError, StopIteration):
+                total += proc_memory_kb(h.proc.pid)["VmHWM"] / 1024.0
+            except (OSError, KeyError):
                 pass
         return total
 
