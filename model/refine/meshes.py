@@ -420,22 +420,7 @@ def manifolds_of(obj: ArticulatedObject) -> dict:
 
 def store(obj: ArticulatedObject, mans: dict) -> None:
     for i, m in mans.items():
-        obj.parts[i].mesh = _without_specks(_exportable(m))
-
-
-def _exportable(man):
-    """A refined part's mesh as written (:func:`_closed_on_export`). Exact booleans can leave
-    vertices that share a position and needle faces that no cleanup of the triangles
-    closes; simplifying the manifold by 0.1, then 1 micrometre collapses them first (a
-    generated USB body carved by its swivel cap: 3 open edges before, closed after)."""
-    out = _closed_on_export(meshops.to_trimesh(man))
-    if _merged_closed(out):
-        return out
-    for tol in (1e-7, 1e-6):
-        alt = _closed_on_export(meshops.to_trimesh(man.simplify(tol)))
-        if _merged_closed(alt):
-            return alt
-    return out
+        obj.parts[i].mesh = _without_specks(_closed_on_export(m))
 
 
 def _without_specks(mesh, share: float = 0.01):
@@ -456,15 +441,25 @@ def _without_specks(mesh, share: float = 0.01):
     return out
 
 
-def _closed_on_export(mesh):
-    """A refined part's mesh as it is written: zero-area slivers dropped, and sheets that
-    touch only by vertex identity held micrometres apart (meshops.separate_coincident) where
-    a reader that merges vertices would otherwise see it open."""
-    out = meshops.drop_degenerate(mesh)
-    if _merged_closed(out):
-        return out
-    apart = meshops.drop_degenerate(meshops.separate_coincident(mesh))
-    return apart if _merged_closed(apart) else out
+def _closed_on_export(man):
+    """A refined part (Manifold) as its mesh is written: zero-area slivers dropped, and
+    sheets that touch only by vertex identity held micrometres apart
+    (meshops.separate_coincident) where a reader that merges vertices would otherwise see
+    it open. Exact booleans can also leave vertices that share a position and needle faces
+    that no cleanup of the triangles closes; then the manifold simplified by 0.1, then 1
+    micrometre is tried (a generated USB body carved by its swivel cap: 3 open edges
+    before, closed after). The first closed candidate wins, else the plain cleanup."""
+    first = None
+    for tol in (0.0, 1e-7, 1e-6):
+        mesh = meshops.to_trimesh(man.simplify(tol) if tol else man)
+        out = meshops.drop_degenerate(mesh)
+        if _merged_closed(out):
+            return out
+        first = out if first is None else first
+        apart = meshops.drop_degenerate(meshops.separate_coincident(mesh))
+        if _merged_closed(apart):
+            return apart
+    return first
 
 
 def _merged_closed(mesh) -> bool:
