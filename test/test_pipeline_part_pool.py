@@ -79,3 +79,34 @@ def test_helper_gives_the_callers_parts_and_survives_a_dead_helper(caplog):
     finally:
         pool.close()
     assert pool._helpers == [None]
+
+
+def test_an_instance_is_its_first_part_moved_to_its_box():
+    from model.core import ArticulatedObject, Part
+    from model.pipeline.generator import instances
+    [t] = _tasks(1)
+    t.center = np.array([0.0, 0.0, 0.3])
+    t.size = np.array([0.4, 0.3, 0.5])
+    [d] = finish_parts([t])
+    offset = np.array([0.0, 0.25, -0.1])
+    moved = d.moved(7, offset)
+    t.center = t.center + offset                   # what meshing the copy itself would give
+    [own] = finish_parts([t])
+    own.index, own.evaluations = 7, 0
+    assert moved.index == 7 and moved.ok
+    assert np.allclose(moved.vertices, own.vertices) and np.array_equal(moved.faces, own.faces)
+    for (e1, t1), (e2, t2) in zip(moved.boxes, own.boxes):
+        assert np.allclose(e1, e2) and np.allclose(t1, t2)
+    assert moved.prepared.manifold(0).volume() == pytest.approx(d.prepared.manifold(0).volume())
+    assert np.allclose(np.array(moved.prepared.manifold().bounding_box()),
+                       np.array(own.prepared.manifold().bounding_box()))
+
+    def part(label, size):
+        return Part(name=label, label=label, parent=0, bbox_center=(0, 0, 0), bbox_size=size)
+    obj = ArticulatedObject(category="StorageFurniture", name="x", parts=[
+        Part(name="body", label="body", parent=-1, bbox_center=(0, 0, 0), bbox_size=(1, 1, 1)),
+        part("drawer", (0.4, 0.8, 0.1)), part("drawer", (0.4, 0.8, 0.10005)),
+        part("drawer", (0.4, 0.8, 0.2)), part("handle", (0.4, 0.8, 0.1)),
+        part("drawer", (0.4, 0.8, 0.2))])
+    assert instances(obj, [1, 2, 3, 4, 5]) == {2: 1, 5: 3}
+    assert instances(obj, [2, 3, 4]) == {}

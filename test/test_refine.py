@@ -365,3 +365,71 @@ def test_a_sliver_touching_a_part_at_one_vertex_is_not_written():
     out = _without_specks(both)
     assert len(out.faces) == len(box.faces) and out.is_watertight
     assert _without_specks(box) is box
+
+
+def _heap(widths) -> ArticulatedObject:
+    """Five drawers decoded as a heap on a chest's front: boxes too big to fit, each lower
+    than the one before, every one with a handle off its centre."""
+    parts = [_part("body_0", "body", -1, (0.45, 1.0, 0.8), (0, 0, 0.4))]
+    for n, (w, y) in enumerate(widths):
+        z = 0.55 - 0.06 * n
+        parts.append(_part(f"drawer_{n}", "drawer", 0, (0.4, w, 0.25), (0.03, y, z),
+                           Joint(JointType.PRISMATIC, (0.22, y, z), (1, 0, 0), t_range=(0, 0.3))))
+    for n in range(len(widths)):
+        d = parts[1 + n]
+        parts.append(_part(f"handle_{n}", "handle", 1 + n, (0.02, 0.12 + 0.02 * n, 0.02),
+                           d.bbox_center + (0.215, 0.05 * (n - 2), 0.03)))
+    return ArticulatedObject(category="StorageFurniture", name="heap", parts=parts)
+
+
+def test_a_heap_of_wide_drawers_becomes_a_stack_of_equal_drawers_with_matching_handles():
+    obj = _heap([(0.45, 0.25), (0.4, 0.0), (0.43, 0.0), (0.48, 0.1), (0.45, -0.05)])
+    rep = refine_layout(obj)
+    assert rep["unheaped"] == 1 and _structure(obj) == _structure(_heap([(0.4, 0)] * 5))
+    drawers, handles = obj.parts[1:6], obj.parts[6:]
+    for n, a in enumerate(drawers):
+        for b in drawers[n + 1:]:
+            assert not _boxes_overlap(a, b)
+        assert np.allclose(a.bbox_size, drawers[0].bbox_size, atol=1e-6)     # equal drawers
+        assert a.bbox_center[1] == pytest.approx(drawers[0].bbox_center[1])  # one column
+    zs = [d.bbox_center[2] for d in drawers]
+    assert zs == sorted(zs, reverse=True)            # the decoder's top-to-bottom order kept
+    for d, h in zip(drawers, handles):               # handles centred, all alike
+        assert h.bbox_center[1] == pytest.approx(d.bbox_center[1], abs=1e-6)
+        assert np.allclose(h.bbox_size, handles[0].bbox_size)
+        assert h.bbox_center[2] - d.bbox_center[2] == pytest.approx(
+            handles[0].bbox_center[2] - drawers[0].bbox_center[2], abs=1e-6)
+        assert abs(h.bbox_center[2] - d.bbox_center[2]) <= d.bbox_size[2] / 4 + 1e-9
+
+
+def test_a_heap_of_narrow_drawers_becomes_a_row_and_other_fronts_are_left_alone():
+    obj = _heap([(0.25, 0.15 * n - 0.3) for n in range(5)])
+    for d in obj.parts[1:6]:                         # side by side, overlapping heights
+        d.bbox_center[2] = 0.5
+    assert refine_layout(obj)["unheaped"] == 1
+    zs = {round(float(d.bbox_center[2]), 6) for d in obj.parts[1:6]}
+    ys = [d.bbox_center[1] for d in obj.parts[1:6]]
+    assert len(zs) == 1 and ys == sorted(ys)
+    widths = [d.bbox_size[1] for d in obj.parts[1:6]]
+    assert max(widths) - min(widths) < 1e-6
+    tidy = _small_fronts()                          # no heap: no grid
+    assert refine_layout(tidy).get("unheaped", 0) == 0
+    # drawers heaped under a door as wide as the body: the separation splits the groups
+    assert refine_layout(_sloppy_cabinet()).get("unheaped", 0) == 0
+
+
+def test_a_full_grid_of_uneven_drawers_gets_equal_cells():
+    def drawer(n, y, z, w, h):
+        return _part(f"drawer_{n}", "drawer", 0, (0.4, w, h), (0.05, y, z),
+                     Joint(JointType.PRISMATIC, (0.25, y, z), (1, 0, 0), t_range=(0, 0.3)))
+    obj = ArticulatedObject(category="StorageFurniture", name="grid", parts=[
+        _part("body_0", "body", -1, (0.5, 1.0, 0.9), (0, 0, 0.45)),
+        drawer(0, -0.24, 0.7, 0.45, 0.3), drawer(1, 0.25, 0.72, 0.4, 0.25),
+        drawer(2, -0.25, 0.3, 0.42, 0.4), drawer(3, 0.23, 0.32, 0.47, 0.36)])
+    rep = refine_layout(obj)
+    assert rep["regular"] == 1 and rep.get("unheaped", 0) == 0
+    d = obj.parts[1:]
+    assert all(np.allclose(p.bbox_size, d[0].bbox_size) for p in d)
+    assert d[0].bbox_center[2] == pytest.approx(d[1].bbox_center[2])         # rows kept
+    assert d[0].bbox_center[1] == pytest.approx(d[2].bbox_center[1])         # columns kept
+    assert d[0].bbox_center[1] < d[1].bbox_center[1] and d[0].bbox_center[2] > d[2].bbox_center[2]

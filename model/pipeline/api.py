@@ -66,6 +66,9 @@ class GenerationConfig:
     max_depth: int = 4
     max_children: int = 16
     refine: bool = True                # layout + mesh refinement before export (model.refine)
+    instances: bool = True             # parts of one label and the same box (a stack's
+                                       # drawers, their handles) share the first one's
+                                       # decoded shape: meshed once, moved to each box
     face_budget: int = 30000           # visual faces per object after refinement (0: all)
 
 

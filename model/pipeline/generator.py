@@ -291,14 +291,24 @@ class Generator:
         timings["diffusion"] = time.perf_counter() - t
 
         t = time.perf_counter()
+        res = [part_resolution(obj.parts[k].bbox_size, cfg) for k in new]
+        copy_of = instances(obj, new) if cfg.instances else {}
+        if copy_of:
+            z = z.clone()
+            for k, rep in copy_of.items():
+                z[new.index(k)] = z[new.index(rep)]
+        meshed = [n for n, k in enumerate(new) if k not in copy_of]
         with torch_threads(cfg.threads):
-            res = [part_resolution(obj.parts[k].bbox_size, cfg) for k in new]
-            grids = self.shape.decode_grids(z, resolution=res) if new else []
-        tasks = [PartTask(k, g, obj.parts[k].bbox_center, obj.parts[k].bbox_size,
-                          prepare=cfg.refine, simplify=cfg.face_budget > 0)
-                 for k, g in zip(new, grids)]
+            grids = self.shape.decode_grids(z[meshed], resolution=[res[n] for n in meshed]) \
+                if meshed else []
+        tasks = [PartTask(new[n], g, obj.parts[new[n]].bbox_center, obj.parts[new[n]].bbox_size,
+                         prepare=cfg.refine, simplify=cfg.face_budget > 0)
+                 for n, g in zip(meshed, grids)]
+        done = {d.index: d for d in self.parts.finish(tasks)}
+        for k, rep in copy_of.items():
+            done[k] = done[rep].moved(k, obj.parts[k].bbox_center - obj.parts[rep].bbox_center)
         fallbacks, prepared = [], {}
-        for k, d in zip(new, self.parts.finish(tasks)):
+        for k, d in ((k, done[k]) for k in new):
             part = obj.parts[k]
             if not d.ok:
                 # No surface in the decoded field: keep the part usable as its box.
@@ -404,6 +414,24 @@ def part_resolution(size, cfg: GenerationConfig) -> int:
     while res < need and res * 2 <= cfg.resolution:
         res *= 2
     return min(res, int(cfg.resolution))
+
+
+def instances(obj: ArticulatedObject, parts: list[int], tol: float = 1e-4) -> dict[int, int]:
+    """Parts among ``parts`` that repeat an earlier one — same label, box sides within
+    ``tol`` m — mapped to that first one. A stack of equal drawers, the handles on them and
+    a row of knobs share one shape (as built furniture and appliances do), and the pipeline
+    meshes it once."""
+    first: list[int] = []
+    out: dict[int, int] = {}
+    for k in parts:
+        p = obj.parts[k]
+        rep = next((r for r in first if obj.parts[r].label == p.label and np.all(
+            np.abs(obj.parts[r].bbox_size - p.bbox_size) <= tol)), None)
+        if rep is None:
+            first.append(k)
+        else:
+            out[k] = rep
+    return out
 
 
 def _object_name(category: str, seed: int) -> str:

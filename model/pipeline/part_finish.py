@@ -47,6 +47,20 @@ class PartDone:
     def ok(self) -> bool:
         return self.status == "ok"
 
+    def moved(self, index: int, offset) -> "PartDone":
+        """This result for part ``index``, an identical box ``offset`` (m) away."""
+        d = np.asarray(offset, dtype=np.float64)
+        if not self.ok:
+            return PartDone(index, self.status, 0)
+
+        def shift(T):
+            T = np.array(T, dtype=np.float64)
+            T[:3, 3] += d
+            return T
+        return PartDone(index, self.status, 0, self.vertices + d, self.faces,
+                        None if self.boxes is None else [(e, shift(T)) for e, T in self.boxes],
+                        None if self.prepared is None else self.prepared.moved(d))
+
     def mesh(self):
         import trimesh
         return trimesh.Trimesh(self.vertices, self.faces, process=False)

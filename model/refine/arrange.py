@@ -205,9 +205,12 @@ def _front_group(obj: ArticulatedObject, label: str, every: bool = True) -> Opti
     return best if 2 * len(best) > len(idx) else None
 
 
-def _lay_out(obj: ArticulatedObject, group: list[int], per_row: list[int]) -> bool:
-    lo = np.min([_lohi(obj.parts[i])[0] for i in group], axis=0)
-    hi = np.max([_lohi(obj.parts[i])[1] for i in group], axis=0)
+def _lay_out(obj: ArticulatedObject, group: list[int], per_row: list[int],
+             gap: Optional[float] = None) -> bool:
+    """``group`` in rows of equal cells over the rectangle it covers, ``per_row`` parts per
+    row, top row first; ``gap`` m between cells (None: :data:`GAP_SHARE` of a cell)."""
+    lo = np.min([_lohi(obj.parts[i])[0] for i in group], axis=0) - (gap or 0.0) / 2
+    hi = np.max([_lohi(obj.parts[i])[1] for i in group], axis=0) + (gap or 0.0) / 2
     rows = len(per_row)
     height = (hi[V] - lo[V]) / rows
     # top row first, then the viewer's left first: the model's own order where it had one
@@ -222,7 +225,10 @@ def _lay_out(obj: ArticulatedObject, group: list[int], per_row: list[int]) -> bo
             size = obj.parts[i].bbox_size.copy()
             centre[H] = lo[H] + (c + 0.5) * width
             centre[V] = hi[V] - (r + 0.5) * height
-            size[H], size[V] = width * (1 - GAP_SHARE), height * (1 - GAP_SHARE)
+            if gap is None:
+                size[H], size[V] = width * (1 - GAP_SHARE), height * (1 - GAP_SHARE)
+            else:
+                size[H], size[V] = width - gap, height - gap
             _place(obj, i, centre, size)
     return True
 

@@ -55,6 +55,8 @@ class LayoutConfig:
     separate: bool = True
     joints: bool = True
     fill: bool = True              # storage fronts: doors and drawers fill the gaps between them
+    heaps: bool = True             # drawers or doors on a front: heaps become a grid, full
+                                   # grids get equal cells (siblings.py)
     snap_deg: float = 25.0
 
 

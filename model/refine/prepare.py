@@ -11,6 +11,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Optional
 
+import numpy as np
+
 from model.core import meshops
 
 from .meshes import FINE_STEPS, SIMPLIFY_STEPS, _simplified, drop_floaters, first_step
@@ -33,6 +35,12 @@ class PreparedMesh:
             if p is not None:
                 return p
         return self.whole
+
+    def moved(self, offset) -> "PreparedMesh":
+        """The same part translated by ``offset`` (m)."""
+        d = np.asarray(offset, dtype=np.float64)
+        return PreparedMesh((self.whole[0] + d, self.whole[1]),
+                            tuple(None if s is None else (s[0] + d, s[1]) for s in self.steps))
 
     def manifold(self, level: int = -1):
         """The part as a Manifold after simplification step ``level`` (-1: none)."""

@@ -44,6 +44,136 @@ def _align(obj: ArticulatedObject, members: list[int], k: int) -> None:
             p.bbox_size[d], p.bbox_center[d] = size, c
 
 
+HEAPS = ("drawer", "door")   # fronts whose heaps become grids
+HEAP = 0.3                   # of the smaller front's face covered by another: a heap
+
+
+def _heaped(obj: ArticulatedObject, members: list[int], k: int) -> bool:
+    """Whether two of ``members`` cover more than ``HEAP`` of the smaller one's face (the
+    in-face axes of normal ``k``) — the decoder's guess at a group it could not place."""
+    ax = [d for d in range(3) if d != k]
+    boxes = [_lohi(obj.parts[i]) for i in members]
+    for n, (alo, ahi) in enumerate(boxes):
+        for blo, bhi in boxes[n + 1:]:
+            inter = np.prod(np.clip(np.minimum(ahi, bhi)[ax] - np.maximum(alo, blo)[ax], 0, None))
+            if inter > HEAP * min(np.prod((ahi - alo)[ax]), np.prod((bhi - blo)[ax])):
+                return True
+    return False
+
+
+def _alone(obj: ArticulatedObject, group: list[int], members: list[int], k: int) -> bool:
+    """Whether no other door or drawer on the face covers more than ``HEAP`` of its own face
+    inside ``group``'s rectangle (a front where two groups heap over each other is left to
+    the separation, which splits the groups apart first)."""
+    ax = [d for d in range(3) if d != k]
+    lo, hi = _union([obj.parts[i] for i in group])
+    for i in members:
+        if i in group or obj.parts[i].label not in HEAPS:
+            continue
+        olo, ohi = _lohi(obj.parts[i])
+        inter = np.prod(np.clip(np.minimum(hi, ohi)[ax] - np.maximum(lo, olo)[ax], 0, None))
+        if inter > HEAP * np.prod((ohi - olo)[ax]):
+            return False
+    return True
+
+
+def _unheap(obj: ArticulatedObject, members: list[int], k: int) -> list[int]:
+    """A heap of same-label fronts on a front face becomes rows of equal cells over the
+    rectangle it covers (``arrange._lay_out``, top row first). The columns are the heap's
+    own: its members' horizontal centres chained within half their median width (the
+    decoder stacks a chest's drawers with the right vertical order but boxes too tall to
+    fit); the rows follow from the count. -> parts per row."""
+    from .arrange import H, _lay_out
+
+    parts = [obj.parts[i] for i in members]
+    width = float(np.median([p.bbox_size[H] for p in parts]))
+    cols = len(_clusters(np.array([p.bbox_center[H] for p in parts]), 0.5 * width))
+    rows = -(-len(members) // cols)
+    per = [cols] * (rows - 1) + [len(members) - cols * (rows - 1)]
+    _lay_out(obj, members, per)
+    return per
+
+
+def _groups(obj: ArticulatedObject, members: list[int]) -> list[list[int]]:
+    """The drawers and the doors among ``members``, by label, two or more each."""
+    out = [[i for i in members if obj.parts[i].label == label] for label in HEAPS]
+    return [g for g in out if len(g) >= 2]
+
+
+def _regular(obj: ArticulatedObject, members: list[int], group: list[int]) -> int:
+    """Drawers or doors of one label that fill a grid — centres within half the median
+    width one column, within half the median height one row, one part in every cell — get equal
+    cells of that grid over the rectangle they cover, ``GAP`` apart, as built furniture
+    repeats one drawer or door; not where another part on the face reaches into that
+    rectangle. -> 1 if laid out."""
+    from .arrange import H, V, _place
+
+    parts = [obj.parts[i] for i in group]
+    cell = {}
+    for ax in (H, V):
+        lines = _clusters(np.array([p.bbox_center[ax] for p in parts]),
+                          0.5 * float(np.median([p.bbox_size[ax] for p in parts])))
+        for n, line in enumerate(lines):
+            for m in line:
+                cell.setdefault(m, []).append((n, len(lines)))
+    (_, cols), (_, rows) = cell[0]
+    if len({tuple(c[0] for c in v) for v in cell.values()}) < len(group) \
+            or rows * cols != len(group) or _crossed(obj, members, group):
+        return 0
+    lo, hi = _union(parts)
+    lo, hi = lo - GAP / 2, hi + GAP / 2
+    for m, ((c, cols), (r, rows)) in cell.items():
+        centre, size = parts[m].bbox_center.copy(), parts[m].bbox_size.copy()
+        for ax, n, count in ((H, c, cols), (V, r, rows)):
+            step = (hi[ax] - lo[ax]) / count
+            centre[ax], size[ax] = lo[ax] + (n + 0.5) * step, step - GAP
+        _place(obj, group[m], centre, size)
+    return 1
+
+
+def _crossed(obj: ArticulatedObject, members: list[int], group: list[int]) -> bool:
+    """Whether a part of the face outside ``group`` reaches into the rectangle it covers."""
+    lo, hi = _union([obj.parts[i] for i in group])
+    return any(np.all(_lohi(obj.parts[i])[0] < hi) and np.all(_lohi(obj.parts[i])[1] > lo)
+               for i in members if i not in group)
+
+
+def _relay(obj: ArticulatedObject, members: list[int], group: list[int], per: list[int]) -> None:
+    """A heap's grid (``per`` parts per row) laid out again in equal cells ``GAP`` apart
+    over the rectangle the fill grew it to, unless another part reaches into it."""
+    from .arrange import _lay_out
+
+    if not _crossed(obj, members, group):
+        _lay_out(obj, group, per, gap=GAP)
+
+
+def _drawer_handles(obj: ArticulatedObject, drawers: list[int]) -> int:
+    """Drawers on a front, each with one child of a single label (its handle or knob): the
+    child is centred across its drawer, as the data's always are, and kept within a quarter
+    of the drawer's height of its middle (the data's are at the middle or near the top);
+    where the drawers' boxes are equal (within 1 mm) the children also share their median
+    size and height on the front. -> children moved."""
+    kids = [obj.children(i) for i in drawers]
+    if any(len(c) != 1 for c in kids) or len({obj.parts[c[0]].label for c in kids}) != 1:
+        return 0
+    kids = [c[0] for c in kids]
+    sizes = np.array([obj.parts[i].bbox_size for i in drawers])
+    same = len(drawers) > 1 and np.ptp(sizes, axis=0).max() <= 1e-3
+    offsets = np.array([obj.parts[c].bbox_center - obj.parts[i].bbox_center
+                        for i, c in zip(drawers, kids)])
+    size = np.median([obj.parts[c].bbox_size for c in kids], axis=0)
+    for n, (i, c) in enumerate(zip(drawers, kids)):
+        off = offsets[n].copy()
+        off[1] = 0.0
+        if same:
+            off[2] = float(np.median(offsets[:, 2]))
+            obj.parts[c].bbox_size = size.copy()
+        reach = obj.parts[i].bbox_size[2] / 4        # the data's: centred, or near the top
+        off[2] = float(np.clip(off[2], -reach, reach))
+        _move_subtree(obj, c, obj.parts[i].bbox_center + off - obj.parts[c].bbox_center)
+    return len(kids)
+
+
 def _space_small(obj: ArticulatedObject, members: list[int], k: int) -> None:
     """Small parts that collide are spread evenly along the in-face axis of their largest
     spread, within their parent's face."""
@@ -247,11 +377,16 @@ def siblings(obj: ArticulatedObject, cfg: LayoutConfig, report: dict) -> None:
             if f is not None:
                 faces.setdefault(f, []).append(c)
         for (k, s), members in faces.items():
+            heaps: list[tuple] = []
             if cfg.align:
                 by_label: dict[str, list[int]] = {}
                 for c in members:
                     by_label.setdefault(obj.parts[c].label, []).append(c)
                 for label, same in by_label.items():
+                    if cfg.heaps and k == 0 and label in HEAPS and len(same) >= 2 \
+                            and _heaped(obj, same, k) and _alone(obj, same, members, k):
+                        heaps.append((same, _unheap(obj, same, k)))
+                        report["unheaped"] = report.get("unheaped", 0) + 1
                     if len(same) >= 2:
                         _align(obj, same, k)
                         if label in SMALL:
@@ -262,6 +397,16 @@ def siblings(obj: ArticulatedObject, cfg: LayoutConfig, report: dict) -> None:
                 report["cleared"] = report.get("cleared", 0) + _clear_panels(obj, members, k)
             if cfg.fill and obj.category == "StorageFurniture":
                 report["filled"] = report.get("filled", 0) + _fill(obj, par, members, k)
+            if cfg.heaps and k == 0:      # drawers and doors in rows of equal cells
+                heaped = {tuple(g) for g, _ in heaps}
+                for g in _groups(obj, members):
+                    if tuple(g) not in heaped:
+                        report["regular"] = report.get("regular", 0) + _regular(obj, members, g)
+            for same, per in heaps:       # a heap's grid grown by the fill: equal cells again
+                _relay(obj, members, same, per)
+            drawers = [c for c in members if obj.parts[c].label == "drawer"]
+            if cfg.align and k == 0 and drawers:
+                report["handles"] = report.get("handles", 0) + _drawer_handles(obj, drawers)
             if cfg.attach:
                 for c in members:
                     for g in obj.children(c):
