@@ -275,6 +275,45 @@ def test_a_screw_cap_sweeps_a_solid_of_revolution_that_holds_it_over_its_travel(
         assert outside <= 0.01 * float(cap.volume()), (r, outside / float(cap.volume()))
 
 
+def _swivel(axis):
+    """A USB stick and a U-shaped cap swinging half a turn about ``axis`` through the stick."""
+    from model.core import meshops
+    obj = ArticulatedObject(category="USB", name="usb", parts=[
+        _part("body_0", "body", -1, (0.05, 0.015, 0.006), (0, 0, 0)),
+        _part("cap_0", "cap", 0, (0.04, 0.02, 0.012), (0.012, 0, 0),
+              Joint(JointType.REVOLUTE, (-0.01, 0.0, 0.0), np.asarray(axis) / np.linalg.norm(axis),
+                    r_range=(0, np.pi)))])
+    cap = meshops.union_manifolds([meshops.box([0.04, 0.02, 0.002], (0.012, 0, 0.005)),
+                                   meshops.box([0.04, 0.02, 0.002], (0.012, 0, -0.005)),
+                                   meshops.box([0.004, 0.02, 0.012], (0.03, 0, 0))])
+    return obj, {0: meshops.box([0.05, 0.015, 0.006], (0, 0, 0)), 1: cap}
+
+
+@pytest.mark.parametrize("axis", [(0.0, 0.0, 1.0), (0.1, 0.2, 1.0)])
+def test_a_swivel_cap_sweeps_slabs_that_hold_every_state(axis):
+    """layered_sweep: every posed state of a swinging cap lies inside the sweep (any axis);
+    about an axis across its plates (as refinement snaps them) the sweep is within a few
+    per cent of the union of 48 posed copies; a slide gets no layered sweep."""
+    from model.core import meshops
+    from model.refine.sweeps import layered_sweep
+    obj, mans = _swivel(axis)
+    ratios = np.linspace(0, 1, 48)
+    sweep = layered_sweep(obj, mans, 1, ratios)
+    assert sweep is not None
+    posed = []
+    for r in ratios:
+        T = obj.link_transforms(ratio={"cap_0": float(r)})["cap_0"]
+        posed.append(mans[1].transform(meshops.affine34(T)))
+        assert float((posed[-1] - sweep).volume()) <= 1e-3 * float(mans[1].volume())
+    union = float(meshops.union_manifolds(posed).volume())
+    assert union <= float(sweep.volume())
+    if axis == (0.0, 0.0, 1.0):
+        assert float(sweep.volume()) <= 1.05 * union
+    obj.parts[1].joint.type = JointType.PRISMATIC
+    obj.parts[1].joint.t_range = (0.0, 0.02)
+    assert layered_sweep(obj, mans, 1, ratios) is None
+
+
 def test_a_runner_that_would_float_becomes_a_ledge_between_the_side_walls():
     """A tray hanging in the middle of an open carcass: a slab under its footprint alone
     would float (a floater the audit fails); the runner spans the carcass wall to wall, so

@@ -10,6 +10,8 @@ import numpy as np
 
 from model.core import ArticulatedObject, JointType, meshops
 
+from .sweeps import HULL_SWEEP, _sweep, revolved_sweep, swept_hull  # noqa: F401
+
 log = logging.getLogger(__name__)
 
 
@@ -72,115 +74,6 @@ def _simplified(m, tol: float):
     side = float(np.ptp(np.asarray(m.bounding_box()).reshape(2, 3), axis=0).max())
     s = m.simplify(min(tol, 0.03 * side))
     return s if not s.is_empty() and float(s.volume()) >= 0.8 * float(m.volume()) else None
-
-
-HULL_SWEEP = ("drawer", "tray", "door", "lid", "button", "knob", "dial")
-
-
-def swept_hull(obj: ArticulatedObject, mans: dict, k: int, states: int = 8):
-    """Union over ``states`` openness ratios of joint ``k`` of its moving subtree. Drawers,
-    trays, doors, lids, buttons, knobs and dials sweep as convex hulls (their inside is
-    theirs: a drawer's cavity, a button's pocket; exact for a box that slides), a turning
-    one as the hulls of each two consecutive states; other parts (a cap around its neck) as
-    their own meshes, so what they enclose stays."""
-    sweep, _ = _sweep(obj, mans, k, states)
-    return sweep
-
-
-def _sweep(obj: ArticulatedObject, mans: dict, k: int, states: int = 8):
-    """(:func:`swept_hull`, a convex bound of it that costs no boolean: the hull of every
-    posed piece), both None without meshes. The sweep is a lazy CSG union: nothing is
-    computed until it is used (48 posed copies of a turning handle take a second)."""
-    mf = meshops._mf()
-    sub = [i for i in obj.subtree(k) if i in mans]
-    if not sub:
-        return None, None
-    hull = obj.parts[k].label in HULL_SWEEP
-    jt = obj.parts[k].joint.type
-    if not hull and jt in (JointType.SCREW, JointType.CONTINUOUS):
-        sweep = revolved_sweep(obj, mans, k)
-        return sweep, sweep
-    if jt == JointType.PRISMATIC and hull:
-        ratios = [0.0, 1.0]
-    else:       # a turning part that is not a panel: fine steps, as it is not a hull
-        ratios = np.linspace(0, 1, states if hull else (48 if jt.rotates else 2 * states))
-    pieces, last = [], {}
-    for r in ratios:
-        T = obj.link_transforms(ratio={obj.parts[k].name: float(r)})
-        for i in sub:
-            m = mans[i].transform(meshops.affine34(T[obj.parts[i].name]))
-            if not hull:
-                pieces.append(m)
-                continue
-            # a turning panel: the hull of two consecutive states holds the wedge its edges
-            # cross between them (a lid's back edge dipping into its body between states)
-            now = m.hull()
-            pieces.append(now if i not in last or jt == JointType.PRISMATIC
-                          else mf.Manifold.batch_boolean([last[i], now], mf.OpType.Add).hull())
-            last[i] = now
-    return mf.Manifold.batch_boolean(pieces, mf.OpType.Add), mf.Manifold.batch_hull(pieces)
-
-
-def revolved_sweep(obj: ArticulatedObject, mans: dict, k: int, levels: int = 64,
-                   segments: int = 48):
-    """What a part spinning about its own axis (a screw cap) sweeps over its whole motion, as
-    a solid of revolution: at each height along the axis, the ring from the nearest to the
-    furthest point of its subtree over all of its travel, revolved in ``segments`` steps
-    (faceted outwards, so it covers the true circle). A union of posed copies of a rough cap
-    (48 states) adds tens of thousands of faces to the neck it is cut from and still misses
-    slivers between states; a profile has a few thousand and misses nothing."""
-    import trimesh
-
-    mf = meshops._mf()
-    j = obj.parts[k].joint
-    a = np.asarray(j.axis, dtype=np.float64)
-    a = a / max(float(np.linalg.norm(a)), 1e-12)
-    o = np.asarray(j.origin, dtype=np.float64)
-    pts = []
-    for i in obj.subtree(k):
-        if i in mans:
-            m = meshops.to_trimesh(mans[i])
-            pts += [m.vertices, trimesh.sample.sample_surface(m, 4000, seed=0)[0]]
-    if not pts:
-        return None
-    rel = np.concatenate(pts) - o
-    h = rel @ a                                                  # height along the axis
-    r = np.linalg.norm(rel - np.outer(h, a), axis=1)            # distance from it
-    lo_t, hi_t = (sorted(j.t_range) if j.type.translates else (0.0, 0.0))
-    edges = np.linspace(h.min() + lo_t, h.max() + hi_t, levels + 1)
-    width = edges[1] - edges[0]
-    rmin, rmax = np.full(levels, np.inf), np.full(levels, -np.inf)
-    # a point at height h covers [h + lo_t, h + hi_t] over the travel
-    first = np.clip(((h + lo_t - edges[0]) / width).astype(int), 0, levels - 1)
-    last = np.clip(((h + hi_t - edges[0]) / width).astype(int), 0, levels - 1)
-    for b in range(levels):
-        hit = (first <= b) & (last >= b)
-        if hit.any():
-            rmin[b], rmax[b] = float(r[hit].min()), float(r[hit].max())
-    grow = 1.0 / np.cos(np.pi / segments)
-    polys, run = [], []
-    for b in list(range(levels)) + [None]:
-        if b is not None and np.isfinite(rmin[b]) and rmax[b] > 1e-6:
-            run.append(b)
-            continue
-        if run:
-            right = [(rmax[c] * grow + 1e-4, edges[c + e]) for c in run for e in (0, 1)]
-            left = [(max(rmin[c] * np.cos(np.pi / segments) - 1e-4, 0.0), edges[c + e])
-                    for c in reversed(run) for e in (1, 0)]
-            polys.append(np.array(right + left))
-        run = []
-    if not polys:
-        return None
-    solid = mf.Manifold.revolve(mf.CrossSection(polys), segments)   # axis = z
-    z = np.array([0.0, 0.0, 1.0])
-    v = np.cross(z, a)
-    c = float(z @ a)
-    if np.linalg.norm(v) < 1e-9:
-        R = np.eye(3) if c > 0 else np.diag([1.0, -1.0, -1.0])
-    else:
-        vx = np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]])
-        R = np.eye(3) + vx + vx @ vx / (1.0 + c)
-    return solid.transform(np.hstack([R, o[:, None]]))
 
 
 def carve_parents(obj: ArticulatedObject, mans: dict) -> dict[int, object]:
