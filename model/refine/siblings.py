@@ -77,7 +77,7 @@ def _alone(obj: ArticulatedObject, group: list[int], members: list[int], k: int)
     return True
 
 
-def _unheap(obj: ArticulatedObject, members: list[int], k: int) -> list[int]:
+def _unheap(obj: ArticulatedObject, members: list[int]) -> list[int]:
     """A heap of same-label fronts on a front face becomes rows of equal cells over the
     rectangle it covers (``arrange._lay_out``, top row first). The columns are the heap's
     own: its members' horizontal centres chained within half their median width (the
@@ -385,7 +385,7 @@ def siblings(obj: ArticulatedObject, cfg: LayoutConfig, report: dict) -> None:
                 for label, same in by_label.items():
                     if cfg.heaps and k == 0 and label in HEAPS and len(same) >= 2 \
                             and _heaped(obj, same, k) and _alone(obj, same, members, k):
-                        heaps.append((same, _unheap(obj, same, k)))
+                        heaps.append((same, _unheap(obj, same)))
                         report["unheaped"] = report.get("unheaped", 0) + 1
                     if len(same) >= 2:
                         _align(obj, same, k)
