@@ -83,3 +83,33 @@ def test_carved_parts_are_written_closed(tmp_path):
         assert out.urdf_path
     finally:
         g.close()
+
+
+def test_a_chest_of_five_drawers_is_a_stack_of_one_drawer_meshed_once(gen):
+    """The decoder heaps a chest's drawers; refinement stacks them as equal drawers, which
+    share the first one's shape: each drawer's mesh and collision boxes are the first one's
+    moved to its box, and the grids decoded are one per distinct part."""
+    calls = []
+    decode = gen.shape.decode_grids
+
+    def counted(z, **kw):
+        calls.append(len(z))
+        return decode(z, **kw)
+    gen.shape.decode_grids = counted
+    try:
+        [res] = gen.generate("a chest of drawers with five drawers", seed=1)
+    finally:
+        gen.shape.decode_grids = decode
+    drawers = [p for p in res.obj.parts if p.label == "drawer"]
+    assert len(drawers) == 5
+    zs = sorted(p.bbox_center[2] for p in drawers)
+    assert all(b - a > 0.9 * drawers[0].bbox_size[2] for a, b in zip(zs, zs[1:]))   # stacked
+    first = drawers[0]
+    for p in drawers[1:]:
+        assert np.allclose(p.bbox_size, first.bbox_size, atol=1e-3)
+        assert np.array_equal(p.latent, first.latent)
+        shift = p.bbox_center - first.bbox_center
+        assert np.allclose(np.asarray(p.mesh.bounds), np.asarray(first.mesh.bounds) + shift,
+                           atol=1e-3)
+        assert len(p.mesh.faces) == len(first.mesh.faces)
+    assert calls and calls[0] < len(res.obj.parts) - 3
