@@ -472,3 +472,23 @@ def test_a_full_grid_of_uneven_drawers_gets_equal_cells():
     assert d[0].bbox_center[2] == pytest.approx(d[1].bbox_center[2])         # rows kept
     assert d[0].bbox_center[1] == pytest.approx(d[2].bbox_center[1])         # columns kept
     assert d[0].bbox_center[1] < d[1].bbox_center[1] and d[0].bbox_center[2] > d[2].bbox_center[2]
+
+
+def test_drawers_of_different_depths_stay_flush_and_a_door_over_them_gives_way():
+    """A group's common depth keeps its outer sides where they were attached (the median of
+    the centres put a stack 4 cm behind the doors, which then closed over the drawers)."""
+    def drawer(n, y, depth):
+        x = 0.25 - depth / 2
+        return _part(f"drawer_{n}", "drawer", 0, (depth, 0.4, 0.2), (x, y, 0.3),
+                     Joint(JointType.PRISMATIC, (0.25, y, 0.3), (1, 0, 0), t_range=(0, 0.1)))
+    obj = ArticulatedObject(category="StorageFurniture", name="deep", parts=[
+        _part("body_0", "body", -1, (0.5, 1.0, 1.0), (0, 0, 0.5)),
+        drawer(0, -0.25, 0.14), drawer(1, 0.25, 0.37), drawer(2, 0.0, 0.36),
+        _part("door_0", "door", 0, (0.02, 0.9, 0.6), (0.24, 0.0, 0.55),
+              Joint(JointType.REVOLUTE, (0.25, -0.45, 0.55), (0, 0, 1), r_range=(0, 1.6)))])
+    refine_layout(obj)
+    drawers, door = obj.parts[1:4], obj.parts[4]
+    fronts = [p.bbox_center[0] + p.bbox_size[0] / 2 for p in drawers]
+    assert max(fronts) - min(fronts) < 1e-9 and fronts[0] > 0.25 - 0.005
+    for d in drawers:
+        assert not _boxes_overlap(d, door)

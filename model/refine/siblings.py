@@ -22,9 +22,11 @@ def _clusters(values: np.ndarray, tol: float) -> list[list[int]]:
     return groups
 
 
-def _align(obj: ArticulatedObject, members: list[int], k: int) -> None:
-    """Rows and columns of same-label siblings on the face with normal axis ``k``: members
-    sharing a row get its mean coordinate and mean size across it."""
+def _align(obj: ArticulatedObject, members: list[int], k: int, s: float) -> None:
+    """Rows and columns of same-label siblings on the face with normal axis ``k`` (outwards
+    along ``s``): members sharing a row get its mean coordinate and mean size across it;
+    the whole group gets its mean depth with its outer sides at their median (a drawer
+    stack stays flush with the face it was attached to)."""
     parts = [obj.parts[i] for i in members]
     for d in (d for d in range(3) if d != k):
         cs = np.array([p.bbox_center[d] for p in parts])
@@ -36,12 +38,11 @@ def _align(obj: ArticulatedObject, members: list[int], k: int) -> None:
             for m in g:
                 parts[m].bbox_center[d] = c
                 parts[m].bbox_size[d] = size
-    # same depth along the normal for the whole group
-    for d in (k,):
-        size = float(np.mean([p.bbox_size[d] for p in parts]))
-        c = float(np.median([p.bbox_center[d] for p in parts]))
-        for p in parts:
-            p.bbox_size[d], p.bbox_center[d] = size, c
+    # same depth along the normal for the whole group, outer sides where most of them are
+    size = float(np.mean([p.bbox_size[k] for p in parts]))
+    outer = float(np.median([p.bbox_center[k] + s * p.bbox_size[k] / 2 for p in parts]))
+    for p in parts:
+        p.bbox_size[k], p.bbox_center[k] = size, outer - s * size / 2
 
 
 HEAPS = ("drawer", "door")   # fronts whose heaps become grids
@@ -388,7 +389,7 @@ def siblings(obj: ArticulatedObject, cfg: LayoutConfig, report: dict) -> None:
                         heaps.append((same, _unheap(obj, same)))
                         report["unheaped"] = report.get("unheaped", 0) + 1
                     if len(same) >= 2:
-                        _align(obj, same, k)
+                        _align(obj, same, k, s)
                         if label in SMALL:
                             _space_small(obj, same, k)
                         report["aligned_groups"] += 1
