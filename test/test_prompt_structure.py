@@ -42,6 +42,16 @@ def test_joint_types_hinge_sides_and_synonyms():
     assert structure_for(e, "Oven", _all_labels("Oven"))["knob"]["count"] == 2
 
 
+def test_a_washers_loading_side_implies_its_door_or_lid():
+    e = parse_prompt("a front-loading washing machine with a dial")
+    assert e.counts == {"dial": 1, "door": 1} and e.joint_types["door"] == ["revolute"]
+    assert parse_prompt("a top loader with two buttons").counts == {"button": 2, "lid": 1}
+    # a stated door or lid is the prompt's own reading, a stated zero included
+    assert parse_prompt("a front loader whose round door is hinged on the left").counts == {"door": 1}
+    assert parse_prompt("a front-loading washer with no door").counts == {"door": 0}
+    assert "door" not in parse_prompt("a front-loading dishwasher cabinet").counts
+
+
 def test_nothing_to_hold_or_a_part_the_category_lacks():
     assert not stated_counts(parse_prompt("a cabinet"))
     assert not stated_counts(parse_prompt("a bottle"))

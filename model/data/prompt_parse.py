@@ -310,6 +310,15 @@ IMPLIED_PARTS = {
     "swivel usb stick": ("cap", "revolute"), "swivel flash drive": ("cap", "revolute"),
     "screw-top bottle": ("cap", "screw"), "flip-top bottle": ("lid", "revolute"),
 }
+# ... of one category: a front-loading washer is loaded through its door, a top loader
+# through its lid (the procedural washers are built so), unless the prompt names either.
+IMPLIED_BY_CATEGORY = {
+    "WashingMachine": (
+        (("front-loading", "front loading", "front-loader", "front loader", "front-load"),
+         ("door", "revolute")),
+        (("top-loading", "top loading", "top-loader", "top loader", "top-load"),
+         ("lid", "revolute"))),
+}
 
 
 def _tidy(out: ExpectedStructure, text: str) -> None:
@@ -319,6 +328,12 @@ def _tidy(out: ExpectedStructure, text: str) -> None:
         if name in low and lab not in out.counts and lab not in out.min_counts:
             out.counts[lab] = 1
             out.joint_types.setdefault(lab, [jt])
+    named = set(out.counts) | set(out.min_counts)
+    for names, (lab, jt) in IMPLIED_BY_CATEGORY.get(out.category, ()):
+        if any(n in low for n in names) and not named & {"door", "lid"}:
+            out.counts[lab] = 1
+            out.joint_types.setdefault(lab, [jt])
+            break
     if out.category == "USB" and "lid" in (set(out.counts) | set(out.min_counts)) \
             and "cap" not in out.counts:          # a USB stick's cover is its cap
         _relabel(out, "lid", "cap")
