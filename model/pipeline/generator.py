@@ -291,7 +291,6 @@ class Generator:
         timings["diffusion"] = time.perf_counter() - t
 
         t = time.perf_counter()
-        res = [part_resolution(obj.parts[k].bbox_size, cfg) for k in new]
         copy_of = instances(obj, new) if cfg.instances else {}
         if copy_of:
             z = z.clone()
@@ -299,8 +298,8 @@ class Generator:
                 z[new.index(k)] = z[new.index(rep)]
         meshed = [n for n, k in enumerate(new) if k not in copy_of]
         with torch_threads(cfg.threads):
-            grids = self.shape.decode_grids(z[meshed], resolution=[res[n] for n in meshed]) \
-                if meshed else []
+            res = [part_resolution(obj.parts[new[n]].bbox_size, cfg) for n in meshed]
+            grids = self.shape.decode_grids(z[meshed], resolution=res) if meshed else []
         tasks = [PartTask(new[n], g, obj.parts[new[n]].bbox_center, obj.parts[new[n]].bbox_size,
                          prepare=cfg.refine, simplify=cfg.face_budget > 0)
                  for n, g in zip(meshed, grids)]

@@ -49,15 +49,23 @@ HEAPS = ("drawer", "door")   # fronts whose heaps become grids
 HEAP = 0.3                   # of the smaller front's face covered by another: a heap
 
 
+def _face_areas(a: tuple, b: tuple, k: int) -> tuple[float, float, float]:
+    """Boxes ``a`` and ``b`` as (lo, hi) seen on a face of normal axis ``k``: (area of their
+    overlap, area of a, area of b)."""
+    ax = [d for d in range(3) if d != k]
+    (alo, ahi), (blo, bhi) = a, b
+    inter = np.prod(np.clip(np.minimum(ahi, bhi)[ax] - np.maximum(alo, blo)[ax], 0, None))
+    return float(inter), float(np.prod((ahi - alo)[ax])), float(np.prod((bhi - blo)[ax]))
+
+
 def _heaped(obj: ArticulatedObject, members: list[int], k: int) -> bool:
     """Whether two of ``members`` cover more than ``HEAP`` of the smaller one's face (the
     in-face axes of normal ``k``) — the decoder's guess at a group it could not place."""
-    ax = [d for d in range(3) if d != k]
     boxes = [_lohi(obj.parts[i]) for i in members]
-    for n, (alo, ahi) in enumerate(boxes):
-        for blo, bhi in boxes[n + 1:]:
-            inter = np.prod(np.clip(np.minimum(ahi, bhi)[ax] - np.maximum(alo, blo)[ax], 0, None))
-            if inter > HEAP * min(np.prod((ahi - alo)[ax]), np.prod((bhi - blo)[ax])):
+    for n, a in enumerate(boxes):
+        for b in boxes[n + 1:]:
+            inter, area_a, area_b = _face_areas(a, b, k)
+            if inter > HEAP * min(area_a, area_b):
                 return True
     return False
 
@@ -66,14 +74,12 @@ def _alone(obj: ArticulatedObject, group: list[int], members: list[int], k: int)
     """Whether no other door or drawer on the face covers more than ``HEAP`` of its own face
     inside ``group``'s rectangle (a front where two groups heap over each other is left to
     the separation, which splits the groups apart first)."""
-    ax = [d for d in range(3) if d != k]
-    lo, hi = _union([obj.parts[i] for i in group])
+    rect = _union([obj.parts[i] for i in group])
     for i in members:
         if i in group or obj.parts[i].label not in HEAPS:
             continue
-        olo, ohi = _lohi(obj.parts[i])
-        inter = np.prod(np.clip(np.minimum(hi, ohi)[ax] - np.maximum(lo, olo)[ax], 0, None))
-        if inter > HEAP * np.prod((ohi - olo)[ax]):
+        inter, _, own = _face_areas(rect, _lohi(obj.parts[i]), k)
+        if inter > HEAP * own:
             return False
     return True
 
@@ -154,6 +160,8 @@ def _drawer_handles(obj: ArticulatedObject, drawers: list[int]) -> int:
     of the drawer's height of its middle (the data's are at the middle or near the top);
     where the drawers' boxes are equal (within 1 mm) the children also share their median
     size and height on the front. -> children moved."""
+    from .arrange import H, V
+
     kids = [obj.children(i) for i in drawers]
     if any(len(c) != 1 for c in kids) or len({obj.parts[c[0]].label for c in kids}) != 1:
         return 0
@@ -165,12 +173,12 @@ def _drawer_handles(obj: ArticulatedObject, drawers: list[int]) -> int:
     size = np.median([obj.parts[c].bbox_size for c in kids], axis=0)
     for n, (i, c) in enumerate(zip(drawers, kids)):
         off = offsets[n].copy()
-        off[1] = 0.0
+        off[H] = 0.0
         if same:
-            off[2] = float(np.median(offsets[:, 2]))
+            off[V] = float(np.median(offsets[:, V]))
             obj.parts[c].bbox_size = size.copy()
-        reach = obj.parts[i].bbox_size[2] / 4        # the data's: centred, or near the top
-        off[2] = float(np.clip(off[2], -reach, reach))
+        reach = obj.parts[i].bbox_size[V] / 4        # the data's: centred, or near the top
+        off[V] = float(np.clip(off[V], -reach, reach))
         _move_subtree(obj, c, obj.parts[i].bbox_center + off - obj.parts[c].bbox_center)
     return len(kids)
 
