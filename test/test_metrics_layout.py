@@ -4,7 +4,7 @@ import pytest
 
 from model.core import ArticulatedObject, Joint, JointType, Part
 from model.metrics.layout_precision import (axis_line_distance, box_iou, compare_layouts,
-                                            match_parts)
+                                            match_parts, sibling_collapse, teacher_forced)
 
 
 def _part(name, label, parent, size, centre, joint=None):
@@ -52,3 +52,55 @@ def test_parts_are_matched_within_their_label_and_the_rest_counted():
     assert all(pred.parts[i].label == _cabinet().parts[j].label for i, j in pairs)
     # the drawer left is matched to the true drawer nearest it, the top one
     assert (2, 2) in pairs
+
+
+def test_sibling_collapse_counts_moving_siblings_on_top_of_each_other():
+    assert sibling_collapse(_cabinet()) == (0, 3)
+    heap = _cabinet()
+    heap.parts[3].bbox_center = heap.parts[2].bbox_center + np.array([0, 0, 0.05])
+    assert sibling_collapse(heap) == (1, 3)
+
+
+def test_teacher_forcing_reads_each_part_in_its_true_parents_frame(monkeypatch):
+    """A network whose articulation head always answers one part's true parent-frame token
+    places that part exactly (and only that part): predictions are matched to their own part
+    and read in the true parent's frame."""
+    import torch
+    from torch import nn
+
+    from model.articulation.config import preset
+    from model.articulation.data import canonical_order
+    from model.articulation.decode import ArticulationModel
+    from model.articulation.frames import to_frame
+    from model.articulation.network import ArticulationTransformer
+    from model.data import format as fmt
+
+    true = _cabinet()
+    toks, jts, parents, labels = true.tokens()
+    rec = fmt.ObjectRecord(id="c", category="StorageFurniture", split="test", labels=labels,
+                           parents=[int(p) for p in parents], joint_types=[int(j) for j in jts],
+                           tokens=toks.tolist(), descriptions={})
+    order, _, _ = canonical_order(labels, parents, toks)
+    rel = to_frame(toks, parents, "parent")
+    target = int(order[-1])                                     # the lower drawer
+    torch.manual_seed(0)
+    cfg, _ = preset("tiny")
+    net = ArticulationTransformer(cfg)
+    last = [m for m in net.head_art.modules() if isinstance(m, nn.Linear)][-1]
+    with torch.no_grad():
+        last.weight.zero_()
+        last.bias.zero_()
+    table = ["body", "drawer", "door"]
+    am = ArticulationModel(net, {
+        "stats": {"tok_mean": rel[target].astype(np.float32), "tok_std": np.ones(16, np.float32),
+                  "cs_mean": np.zeros(64, np.float32), "cs_std": np.ones(64, np.float32),
+                  "frame": "parent"},
+        "label_table": {"categories": ["StorageFurniture"] * 3, "labels": table,
+                        "cs": np.eye(3, 64, dtype=np.float32)},
+        "text_encoder": "all-minilm-l6-v2", "train_config": {}})
+    monkeypatch.setattr(am, "encode_text", lambda texts: (torch.randn(1, 4, 384),
+                                                          torch.ones(1, 4, dtype=torch.bool)))
+    got = teacher_forced(am, rec, "a cabinet")
+    assert got["pairs"] == 4
+    assert sorted(got["iou"])[-1] == pytest.approx(1.0) and sorted(got["iou"])[-2] < 0.9
+    assert min(got["centre_m"]) == pytest.approx(0.0, abs=1e-6)

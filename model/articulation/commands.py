@@ -63,6 +63,13 @@ def add_training_args(ap: argparse.ArgumentParser) -> None:
     ap.add_argument("--own-inputs", type=float, metavar="SHARE",
                     help="scheduled sampling: share of the objects per batch whose nodes carry "
                          "the network's own articulation predictions (default 0)")
+    ap.add_argument("--token-frame", choices=("absolute", "parent"),
+                    help="the frame of the part tokens: 'parent' gives boxes relative to the "
+                         "parent's box and joint origins relative to the part's own box "
+                         "(model.articulation.frames; default absolute)")
+    ap.add_argument("--art-modes", type=int, metavar="K",
+                    help="articulation head with K candidate tokens per part, one drawn when "
+                         "decoding (default 1: one regressed token)")
     ap.add_argument("--seed", type=int)
     ap.add_argument("--threads", type=int)
     ap.add_argument("--no-progress", action="store_true")
@@ -72,6 +79,7 @@ def training_overrides(args: argparse.Namespace, **more) -> dict:
     """TrainConfig fields set by the flags of ``add_training_args`` (and ``more``)."""
     given = {"max_steps": args.steps, "max_minutes": args.minutes, "batch_size": args.batch_size,
              "lr": args.lr, "warmup_steps": args.warmup, "own_inputs": args.own_inputs,
+             "token_frame": args.token_frame, "art_modes": args.art_modes,
              "seed": args.seed, "threads": args.threads, **more}
     return {k: v for k, v in given.items() if v is not None}
 

@@ -49,6 +49,11 @@ class ArticulationConfig:
                                   # probabilities of 0..classes-1 parts (model.imaging.counts)
     num_codebooks: int = 4        # codebook logits P: (num_codebooks, codebook_size)
     codebook_size: int = 128
+    art_modes: int = 1            # > 1: the articulation head proposes this many
+                                  # candidate tokens and their probabilities (trained winner-
+                                  # takes-all); decoding draws one, so a part whose place is
+                                  # ambiguous (next drawer right or below) takes one place
+                                  # instead of the average of both
     predict_z: bool = False       # True = ablation no_shape_prior: regress z directly
     z_dim: int = 768              # only used when predict_z
 
@@ -96,12 +101,15 @@ class TrainConfig:
     w_z: float = 1.0              # ablation no_shape_prior: MSE on (normalised) z
     w_label: float = 1.0          # auxiliary: CE of the nearest-c_s label decision
     w_plan: float = 1.0           # auxiliary: CE of the START plan head (parts per label)
+    w_mode: float = 1.0           # art_modes > 1: CE of the articulation mode that fits best
     rounds_per_object: int = 4    # decoding rounds drawn per object per step (they share
                                   # one encoded description)
     own_inputs: float = 0.0       # scheduled sampling: share of the objects of a batch whose
                                   # existing nodes carry the network's own (teacher-forced)
                                   # articulation predictions instead of the ground truth, as
                                   # iterative decoding feeds them back (exposure bias)
+    token_frame: str = "absolute" # part tokens in the object frame or relative to the
+                                  # parent's box (model.articulation.frames)
 
 
 PRESETS: dict[str, tuple[ArticulationConfig, TrainConfig]] = {

@@ -19,6 +19,7 @@ import torch
 from model.core.objects import TOKEN_DIM
 from model.data import format as fmt
 
+from .frames import to_frame
 from .network import Targets, TreeBatch
 
 log = logging.getLogger(__name__)
@@ -69,8 +70,10 @@ class TreeItem:
 
 
 def make_item(rec: fmt.ObjectRecord, tok_mean: np.ndarray, tok_std: np.ndarray,
-              cs: np.ndarray, geo: np.ndarray, label_idx: np.ndarray) -> TreeItem:
-    """cs (K, 64) normalised, geo (K, ...) and label_idx (K,) in the record's node order."""
+              cs: np.ndarray, geo: np.ndarray, label_idx: np.ndarray,
+              frame: str = "absolute") -> TreeItem:
+    """cs (K, 64) normalised, geo (K, ...) and label_idx (K,) in the record's node order;
+    tokens in ``frame`` (model.articulation.frames), then normalised."""
     toks = np.asarray(rec.tokens, dtype=np.float64)
     order, rounds, _ = canonical_order(rec.labels, rec.parents, toks)
     pos = {old: new for new, old in enumerate(order)}
@@ -82,7 +85,7 @@ def make_item(rec: fmt.ObjectRecord, tok_mean: np.ndarray, tok_std: np.ndarray,
              if rec.descriptions.get(k)]
     return TreeItem(
         id=rec.id, category=rec.category,
-        tokens=((toks[order] - tok_mean) / tok_std).astype(np.float32),
+        tokens=((to_frame(toks[order], parents, frame) - tok_mean) / tok_std).astype(np.float32),
         jtypes=np.asarray(rec.joint_types, dtype=np.int64)[order],
         parents=parents.astype(np.int64), depth=depth,
         rounds=np.array([rounds[i] for i in order], dtype=np.int64),

@@ -140,7 +140,13 @@ def _rounds(am: "ArticulationModel", rows, gens, memory, modality, max_rounds, m
                                     cond_index=torch.tensor(active))
             finally:
                 am.net.eval()
-            out["art"] = sampled["art"]
+            out.update({k: sampled[k] for k in ("art", "art_modes", "art_logits") if k in sampled})
+        if "art_logits" in out:          # one candidate token per node, drawn by its probability
+            out["art"] = torch.stack([
+                torch.stack([out["art_modes"][b, t, _draw_choice(out["art_logits"][b, t].float(),
+                                                                 temperature, gens[i])]
+                             for t in range(out["art_logits"].shape[1])])
+                for b, i in enumerate(active)])
         for b, i in enumerate(active):
             if "plan" in out and rows[i]["plan_logits"] is None:
                 rows[i]["plan_logits"] = out["plan"][b].float().numpy().copy()
@@ -351,6 +357,6 @@ def _hinge_last(am: "ArticulationModel", row: dict, lab: str) -> None:
     st["hinge_i"][lab] = k + 1
     side = st["plan"].hinges[lab][k]
     st["sides"][-1] = side
-    tok = row["tok"][-1] * am.tok_std + am.tok_mean
-    tok = set_hinge(tok.double().numpy(), side)
-    row["tok"][-1] = (torch.as_tensor(tok, dtype=torch.float32) - am.tok_mean) / am.tok_std
+    toks = am.absolute_tokens(row["tok"], row["par"])
+    toks[-1] = set_hinge(toks[-1], side)
+    row["tok"][-1] = am.network_tokens(toks, row["par"])[-1]

@@ -12,12 +12,14 @@ from __future__ import annotations
 import os
 from typing import Optional, Union
 
+import numpy as np
 import torch
 
 from model.core.objects import ArticulatedObject
 
 from .checkpoint import build_network, read_checkpoint
 from .decode import decode_trees
+from .frames import check_frame, from_frame, to_frame
 from .network import ArticulationTransformer
 from .structure_control import StructurePlan, resolve_structure
 from .trees import DecodedTree
@@ -35,6 +37,7 @@ class ArticulationModel:
         st = ckpt["stats"]
         self.tok_mean = torch.as_tensor(st["tok_mean"], dtype=torch.float32)   # (16,)
         self.tok_std = torch.as_tensor(st["tok_std"], dtype=torch.float32)     # (16,)
+        self.frame: str = check_frame(st.get("frame", "absolute"))   # model.articulation.frames
         self.z_mean = None if st.get("z_mean") is None else torch.as_tensor(st["z_mean"]).float()
         self.z_std = None if st.get("z_std") is None else torch.as_tensor(st["z_std"]).float()
         lt = ckpt["label_table"]
@@ -64,6 +67,18 @@ class ArticulationModel:
         return enc.states.float(), enc.mask
 
     # -- labels -------------------------------------------------------------------------------
+    def network_tokens(self, tokens, parents) -> list[torch.Tensor]:
+        """Absolute (K, 16) tokens of a tree -> the network's normalised tokens (one per node)."""
+        rel = to_frame(np.asarray(tokens, dtype=np.float64).reshape(-1, 16), parents, self.frame)
+        return list((torch.as_tensor(rel, dtype=torch.float32) - self.tok_mean) / self.tok_std)
+
+    def absolute_tokens(self, tokens: list[torch.Tensor], parents) -> np.ndarray:
+        """The network's normalised tokens of a tree (parents first) -> absolute (K, 16)."""
+        if not tokens:
+            return np.zeros((0, 16))
+        rel = (torch.stack(list(tokens)).float() * self.tok_std + self.tok_mean).double().numpy()
+        return from_frame(rel, parents, self.frame)
+
     def nearest_label(self, cs_n: torch.Tensor) -> torch.Tensor:
         """Normalised cs (K, 64) -> index into the label table (K,)."""
         return torch.cdist(cs_n.float(), self.table_cs_n).argmin(-1)

@@ -20,6 +20,8 @@ import torch.nn.functional as F
 
 from .config import NUM_JOINT_TYPES, ArticulationConfig
 
+MODE_EPS = 0.05   # art_modes > 1: share of the articulation loss spread over every mode
+
 
 @dataclass
 class TreeBatch:
@@ -253,7 +255,8 @@ class ArticulationTransformer(nn.Module):
         self.layers = nn.ModuleList([Block(d, cfg.n_heads, cfg.ffn_mult, cfg.dropout, True)
                                      for _ in range(cfg.n_layers)])
         self.head_end = nn.Linear(d, 1)
-        self.head_art = _mlp(d, d, cfg.token_dim)
+        K = max(int(cfg.art_modes), 1)
+        self.head_art = _mlp(d, d, cfg.token_dim * K + (K if K > 1 else 0))
         self.head_jt = nn.Linear(d, NUM_JOINT_TYPES)
         self.head_cs = _mlp(d, d, cfg.cs_dim)
         out_geo = cfg.z_dim if cfg.predict_z else cfg.num_codebooks * cfg.codebook_size
@@ -325,14 +328,28 @@ class ArticulationTransformer(nn.Module):
         geo = self.head_geo(x)
         if not self.cfg.predict_z:
             geo = geo.view(*x.shape[:2], self.cfg.num_codebooks, self.cfg.codebook_size)
-        out = {"end": self.head_end(x).squeeze(-1), "art": self.head_art(x),
-               "jt": self.head_jt(x), "cs": self.head_cs(x), "geo": geo}
+        out = {"end": self.head_end(x).squeeze(-1), "jt": self.head_jt(x),
+               "cs": self.head_cs(x), "geo": geo, **self.articulation(x)}
         if self.head_plan is not None:
             out["plan"] = self.head_plan(x[:, 0]).view(x.shape[0], len(self.cfg.count_labels),
                                                        self.cfg.plan_max_count + 1)
         if targets is None:
             return out, None
         return out, self.losses(out, batch.mask, targets, weights or {})
+
+    def articulation(self, x: torch.Tensor) -> dict:
+        """art (B, N, 16); with art_modes K > 1 also art_modes (B, N, K, 16) and art_logits
+        (B, N, K), ``art`` being the most probable mode."""
+        a = self.head_art(x)
+        K = self.cfg.art_modes
+        if K <= 1:
+            return {"art": a}
+        modes = a[..., : K * self.cfg.token_dim].unflatten(-1, (K, self.cfg.token_dim))
+        logits = a[..., K * self.cfg.token_dim:]
+        best = logits.argmax(-1, keepdim=True).unsqueeze(-1).expand(*logits.shape[:-1], 1,
+                                                                    self.cfg.token_dim)
+        return {"art": modes.gather(-2, best).squeeze(-2), "art_modes": modes,
+                "art_logits": logits}
 
     def losses(self, out: dict, mask: torch.Tensor, t: Targets, w: dict) -> dict:
         """Weighted loss terms; child terms only where a child exists. 'total' is the sum."""
@@ -345,6 +362,16 @@ class ArticulationTransformer(nn.Module):
              "jt": (F.cross_entropy(out["jt"].transpose(1, 2), t.child_jtypes,
                                     reduction="none") * mc).sum() / nc,
              "cs": (((out["cs"] - t.child_cs) ** 2).mean(-1) * mc).sum() / nc}
+        if "art_modes" in out:
+            # winner takes all (relaxed: the other modes get MODE_EPS of the gradient so none
+            # dies), and the mode logits learn which mode fits
+            err = ((out["art_modes"] - t.child_tokens.unsqueeze(-2)) ** 2).mean(-1)  # (B, N, K)
+            best = err.detach().argmin(-1)
+            fit = err.gather(-1, best.unsqueeze(-1)).squeeze(-1)
+            mix = (1 - MODE_EPS) * fit + MODE_EPS * err.mean(-1)
+            L["art"] = (mix * mc).sum() / nc
+            ce = F.cross_entropy(out["art_logits"].transpose(1, 2), best, reduction="none")
+            L["mode"] = (ce * mc).sum() / nc
         if t.plan_counts is not None and "plan" in out:
             L["plan"] = F.cross_entropy(out["plan"].transpose(1, 2),
                                         t.plan_counts.clamp(0, self.cfg.plan_max_count))
@@ -364,6 +391,7 @@ class ArticulationTransformer(nn.Module):
         weights = {"end": w.get("w_end", 1.0), "art": w.get("w_art", 10.0),
                    "jt": w.get("w_jt", 1.0), "cs": w.get("w_cs", 5.0),
                    "P": w.get("w_p", 2.0), "z": w.get("w_z", 1.0),
-                   "label": w.get("w_label", 1.0), "plan": w.get("w_plan", 1.0)}
+                   "label": w.get("w_label", 1.0), "plan": w.get("w_plan", 1.0),
+                   "mode": w.get("w_mode", 1.0)}
         L["total"] = sum(weights[k] * v for k, v in L.items())
         return L

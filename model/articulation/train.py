@@ -25,6 +25,7 @@ from model.data.vocab import semantic_text
 
 from .checkpoint import read_checkpoint, save_checkpoint
 from .config import ArticulationConfig, TrainConfig
+from .frames import check_frame, to_frame
 from .data import (TextCache, TreeItem, collate, group_rounds, make_item, pick_texts,
                    round_sample)
 from .network import ArticulationTransformer
@@ -82,9 +83,11 @@ def _part_targets(root: Path, recs: list[fmt.ObjectRecord], targets, predict_z: 
 def prepare_data(data_root: str, targets, *, predict_z: bool = False,
                  splits: tuple[str, ...] = ("train", "val"),
                  cache_dir: Optional[str] = None, stats: Optional[dict] = None,
-                 label_table: Optional[dict] = None, progress: bool = True) -> PreparedData:
+                 label_table: Optional[dict] = None, progress: bool = True,
+                 frame: str = "absolute") -> PreparedData:
     """Read a prepared dataset and build training items. ``stats`` / ``label_table`` from a
-    checkpoint are reused when given (evaluation), else computed on the train split."""
+    checkpoint are reused when given (evaluation), else computed on the train split; the
+    token frame (model.articulation.frames) is the stats' own, else ``frame``."""
     root = Path(data_root)
     manifest = fmt.load_manifest(root)
     version = str(manifest.get("data_version", "unknown"))
@@ -100,11 +103,11 @@ def prepare_data(data_root: str, targets, *, predict_z: bool = False,
                                      cache / f"targets_{version}_{s}.pt" if cache else None,
                                      progress))
     if stats is None:
-        toks = np.concatenate([np.asarray(r.tokens, np.float64) for r in recs["train"]])
+        toks = np.concatenate([to_frame(r.tokens, r.parents, frame) for r in recs["train"]])
         std = toks.std(0)
         stats = {"tok_mean": toks.mean(0).astype(np.float32),
                  "tok_std": np.maximum(std, 1e-3).astype(np.float32),
-                 "z_mean": None, "z_std": None}
+                 "z_mean": None, "z_std": None, "frame": check_frame(frame)}
         if predict_z:
             zs = np.concatenate([geo[r.id] for r in recs["train"]])
             stats["z_mean"] = zs.mean(0).astype(np.float32)
@@ -133,7 +136,8 @@ def prepare_data(data_root: str, targets, *, predict_z: bool = False,
             cs = np.stack([cs_of[(r.category, lab)] for lab in r.labels])
             cs = (cs - stats["cs_mean"]) / stats["cs_std"]
             lab_idx = np.array([row_of.get((r.category, lab), -1) for lab in r.labels])
-            out.append(make_item(r, stats["tok_mean"], stats["tok_std"], cs, g, lab_idx))
+            out.append(make_item(r, stats["tok_mean"], stats["tok_std"], cs, g, lab_idx,
+                                 stats.get("frame", "absolute")))
         items[s] = out
     geo_shape = tuple(next(iter(geo.values())).shape[1:])
     return PreparedData(items, stats, label_table, geo_shape, version,
@@ -316,7 +320,8 @@ def _text_data(rc: RunConfig, cfg: ArticulationConfig, out: Path):
     tc = rc.train
     view = _CodebookView(rc.targets, cfg)
     data = prepare_data(rc.data, view, predict_z=cfg.predict_z,
-                        cache_dir=str(out / "cache"), progress=rc.progress)
+                        cache_dir=str(out / "cache"), progress=rc.progress,
+                        frame=tc.token_frame)
     tr, va = data.items["train"], data.items.get("val") or []
     extra_info = []
     for j, root in enumerate(rc.extra):

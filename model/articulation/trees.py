@@ -113,9 +113,9 @@ def initial_row(am: "ArticulationModel", keep, max_nodes: int) -> dict:
     if len(labs) == 0 or sum(int(p) < 0 for p in pars) != 1:
         raise ValueError("the kept tree must be non-empty with a single root")
     row["done"][0] = True   # the root exists: START adds nothing
-    for n, (tok, jt, p, c) in enumerate(zip(toks, jts, pars, cs_list)):
-        row["tok"].append((torch.as_tensor(np.asarray(tok), dtype=torch.float32)
-                           - am.tok_mean) / am.tok_std)
+    net_toks = am.network_tokens(toks, pars)
+    for n, (tok, jt, p, c) in enumerate(zip(net_toks, jts, pars, cs_list)):
+        row["tok"].append(tok)
         row["jt"].append(int(jt))
         row["lab"].append(am._count_index.get(labs[n], -1))
         row["cs"].append(c)
@@ -162,7 +162,8 @@ def batch_rows(am: "ArticulationModel", rows: list[dict]) -> TreeBatch:
 
 def finish_row(am: "ArticulationModel", row: dict) -> DecodedTree:
     K = len(row["tok"])
-    tok = torch.stack(row["tok"]) * am.tok_std + am.tok_mean if K else torch.zeros(0, TOKEN_DIM)
+    tok = torch.as_tensor(am.absolute_tokens(row["tok"], row["par"]), dtype=torch.float32
+                          ).reshape(-1, TOKEN_DIM)
     cs_n = torch.stack(row["cs"]) if K else torch.zeros(0, am.cfg.cs_dim)
     idx = am.nearest_label(cs_n) if K else torch.zeros(0, dtype=torch.long)
     cs = cs_n * am.cs_std + am.cs_mean

@@ -270,7 +270,8 @@ def _rendered_items(rc: ImageRunConfig, cfg, init: Optional[dict], same: bool, o
     view = _CodebookView(rc.targets, cfg)
     data = prepare_data(rc.data, view, predict_z=cfg.predict_z, cache_dir=str(out / "cache"),
                         stats=None if init is None else init["stats"],
-                        label_table=None if init is None or not same else init["label_table"])
+                        label_table=None if init is None or not same else init["label_table"],
+                        frame=rc.train.token_frame)
     tr_all, va_all = data.items["train"], data.items.get("val") or []
     have = set(rendered_ids(rc.renders, [it.id for it in tr_all + va_all]))
     tr = [it for it in tr_all if it.id in have]

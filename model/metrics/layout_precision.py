@@ -6,12 +6,15 @@ Parts are matched label by label (Hungarian assignment on centre distance); part
 partner of their label count as missed or extra. Per matched pair: axis-aligned box IoU,
 centre error and size error (metres, and relative to the true body's diagonal); per matched
 moving pair of one joint type: the angle between the joint axes (unsigned, degrees) and, for
-turning joints, the distance between the axis lines (metres). Scored twice: the network's
-layout as decoded (``raw``) and after the layout refinement the product runs (``refined``).
+turning joints, the distance between the axis lines (metres). Scored three times: the
+network's layout as decoded (``raw``), after the layout refinement the product runs
+(``refined``), and **teacher-forced** (``teacher``): every true part predicted by the network
+from the true tree before the round that adds it (its true parent included), the network's
+articulation read in the true parent's frame, compared with that same part (no matching).
+Sibling collapse is counted on its own: the share of pairs of siblings (same parent, both
+moving) whose boxes overlap by more than ``COLLAPSE`` of the smaller box (the truth has none).
 
     artformer eval layout --data data/prepared/v1 [--n 100] [--length sentence] [--seed 0]
-
-Teacher-forced figures (the network given the true prefix) are not measured here.
 """
 from __future__ import annotations
 
@@ -24,7 +27,10 @@ import numpy as np
 
 from model.core import ArticulatedObject, JointType
 
-KEYS = ("iou", "centre_m", "centre_rel", "size_m", "axis_deg", "axis_line_m")
+KEYS = ("iou", "centre_m", "centre_rel", "size_m", "axis_deg", "axis_line_m", "iou_body",
+        "centre_body")
+MODES = ("raw", "refined", "teacher")
+COLLAPSE = 0.3             # sibling boxes sharing more than this of the smaller box's volume
 
 
 def box_iou(a, b) -> float:
@@ -65,29 +71,116 @@ def match_parts(pred: ArticulatedObject, true: ArticulatedObject) -> tuple[list,
     return pairs, extra, missed
 
 
+def sibling_collapse(obj: ArticulatedObject) -> tuple[int, int]:
+    """(pairs of moving siblings whose boxes overlap by > COLLAPSE of the smaller box, pairs
+    of moving siblings)."""
+    kids: dict[int, list] = {}
+    for p in obj.parts:
+        if p.parent >= 0 and p.joint.type != JointType.FIXED:
+            kids.setdefault(p.parent, []).append(p)
+    bad = total = 0
+    for group in kids.values():
+        for a in range(len(group)):
+            for b in range(a + 1, len(group)):
+                pa, pb = group[a], group[b]
+                lo = np.maximum(pa.bbox_center - pa.bbox_size / 2, pb.bbox_center - pb.bbox_size / 2)
+                hi = np.minimum(pa.bbox_center + pa.bbox_size / 2, pb.bbox_center + pb.bbox_size / 2)
+                inter = float(np.prod(np.clip(hi - lo, 0.0, None)))
+                small = min(float(np.prod(pa.bbox_size)), float(np.prod(pb.bbox_size)))
+                total += 1
+                bad += inter > COLLAPSE * max(small, 1e-12)
+    return bad, total
+
+
+def _in_body(part, root):
+    """A copy of ``part``'s box in its object's body frame: the root's box is the unit cube."""
+    from copy import copy
+    size = np.maximum(np.abs(root.bbox_size), 1e-6)
+    q = copy(part)
+    q.bbox_center = (part.bbox_center - root.bbox_center) / size
+    q.bbox_size = part.bbox_size / size
+    return q
+
+
+def _pair_errors(p, t, diag: float, out: dict, proot, troot) -> None:
+    """Append the errors of predicted part p against true part t to ``out`` (lists); the
+    body-frame figures read each part in its own object's root box (sizes the prompt does not
+    state drop out)."""
+    out["iou"].append(box_iou(p, t))
+    pb, tb = _in_body(p, proot), _in_body(t, troot)
+    out["iou_body"].append(box_iou(pb, tb))
+    out["centre_body"].append(float(np.linalg.norm(pb.bbox_center - tb.bbox_center)))
+    c = float(np.linalg.norm(p.bbox_center - t.bbox_center))
+    out["centre_m"].append(c)
+    out["centre_rel"].append(c / diag)
+    out["size_m"].append(float(np.linalg.norm(p.bbox_size - t.bbox_size)))
+    if t.joint.type != JointType.FIXED and p.joint.type == t.joint.type:
+        a1, a2 = np.asarray(p.joint.axis, float), np.asarray(t.joint.axis, float)
+        cos = abs(a1 @ a2) / max(np.linalg.norm(a1) * np.linalg.norm(a2), 1e-12)
+        out["axis_deg"].append(float(np.degrees(np.arccos(min(1.0, cos)))))
+        if t.joint.type.rotates:
+            out["axis_line_m"].append(axis_line_distance(p.joint.origin, a1,
+                                                         t.joint.origin, a2))
+
+
+def _diag(true: ArticulatedObject) -> float:
+    return max(float(np.linalg.norm(true.parts[true.root].bbox_size)), 1e-6)
+
+
 def compare_layouts(pred: ArticulatedObject, true: ArticulatedObject) -> dict:
     """Per-pair errors of one decoded object against the true one (lists under KEYS), and
     its extra / missed part counts."""
     pairs, extra, missed = match_parts(pred, true)
-    root = true.parts[true.root]
-    diag = max(float(np.linalg.norm(root.bbox_size)), 1e-6)
+    diag = _diag(true)
     out = {k: [] for k in KEYS}
     for i, j in pairs:
-        p, t = pred.parts[i], true.parts[j]
-        out["iou"].append(box_iou(p, t))
-        c = float(np.linalg.norm(p.bbox_center - t.bbox_center))
-        out["centre_m"].append(c)
-        out["centre_rel"].append(c / diag)
-        out["size_m"].append(float(np.linalg.norm(p.bbox_size - t.bbox_size)))
-        if t.joint.type != JointType.FIXED and p.joint.type == t.joint.type:
-            a1, a2 = np.asarray(p.joint.axis, float), np.asarray(t.joint.axis, float)
-            cos = abs(a1 @ a2) / max(np.linalg.norm(a1) * np.linalg.norm(a2), 1e-12)
-            out["axis_deg"].append(float(np.degrees(np.arccos(min(1.0, cos)))))
-            if t.joint.type.rotates:
-                out["axis_line_m"].append(axis_line_distance(p.joint.origin, a1,
-                                                             t.joint.origin, a2))
+        _pair_errors(pred.parts[i], true.parts[j], diag, out, pred.parts[pred.root],
+                     true.parts[true.root])
     out["extra"], out["missed"], out["pairs"] = extra, missed, len(pairs)
     return out
+
+
+def teacher_forced(am, rec, text: str) -> dict:
+    """Errors of every true part predicted from the true tree before its round (lists under
+    KEYS; pairs = parts). ``am``: an ArticulationModel, ``rec``: a prepared record."""
+    import torch
+    from model.articulation.data import canonical_order, collate, make_item, round_sample
+    from model.articulation.frames import token_from_frame
+    from model.core.objects import Part
+    toks = np.asarray(rec.tokens, dtype=np.float64)
+    order, _, _ = canonical_order(rec.labels, rec.parents, toks)
+    cs = torch.stack([am.label_cs(rec.category, lab) for lab in rec.labels]).numpy()
+    shape = (am.cfg.z_dim,) if am.cfg.predict_z else (am.cfg.num_codebooks, am.cfg.codebook_size)
+    item = make_item(rec, am.tok_mean.numpy(), am.tok_std.numpy(), cs,
+                     np.zeros((len(toks),) + shape, np.float32), np.full(len(toks), -1),
+                     am.frame)
+    samples = [round_sample(item, k) for k in range(int(item.rounds.max()) + 1)]
+    batch, _ = collate(samples, shape, None, am.cfg.count_labels)
+    cond, cmask = am.encode_text([text])
+    with torch.no_grad():
+        out, _ = am.net(batch, cond, cmask, "text",
+                        cond_index=torch.zeros(len(samples), dtype=torch.long))
+    true_abs = toks[order]
+    pred = {}
+    for r, smp in enumerate(samples):
+        for pos in np.nonzero(smp["target"] >= 0)[0]:
+            node = int(smp["target"][pos])
+            rel = (out["art"][r, pos].float() * am.tok_std + am.tok_mean).double().numpy()
+            par = int(item.parents[node])
+            pred[node] = token_from_frame(rel, None if par < 0 else true_abs[par], am.frame)
+    res = {k: [] for k in KEYS}
+    diag = _diag(ArticulatedObject.from_tokens(toks, rec.joint_types, rec.parents, rec.labels))
+    part = {(w, n): Part.from_token(tok, int(item.jtypes[n]), name=w, label=item.labels[n],
+                                    parent=int(item.parents[n]))
+            for w, toks_of in (("p", pred), ("t", dict(enumerate(true_abs)))) for n, tok in toks_of.items()}
+    troot = part["t", int(np.nonzero(item.parents < 0)[0][0])]
+    for node in pred:                    # placed in the true tree: read in the true body too
+        _pair_errors(part["p", node], part["t", node], diag, res, troot, troot)
+    res["extra"], res["missed"], res["pairs"] = 0, 0, len(pred)
+    placed = ArticulatedObject.from_tokens(np.stack([pred[n] for n in range(len(pred))]),
+                                           item.jtypes, item.parents, item.labels)
+    res["collapsed"], res["sibling_pairs"] = sibling_collapse(placed)
+    return res
 
 
 def layout_precision(data_root: str, *, n: int = 100, split: str = "test",
@@ -101,8 +194,9 @@ def layout_precision(data_root: str, *, n: int = 100, split: str = "test",
 
     gen = Generator.load(GenerationConfig(checkpoint=checkpoint))
     ids = fmt.split_ids(data_root, split)[:n]
-    rows = {"raw": {k: [] for k in KEYS}, "refined": {k: [] for k in KEYS}}
-    counts = {"raw": [0, 0, 0], "refined": [0, 0, 0]}       # pairs, extra, missed
+    rows = {m: {k: [] for k in KEYS} for m in MODES}
+    counts = {m: [0, 0, 0] for m in MODES}                   # pairs, extra, missed
+    collapse = {m: [0, 0] for m in MODES + ("truth",)}       # collapsed, sibling pairs
     used = 0
     it = ids
     if progress:
@@ -118,8 +212,16 @@ def layout_precision(data_root: str, *, n: int = 100, split: str = "test",
                                              name=rec.id)
         tree = gen.decode_trees(texts[0], seed=seed)[0][0]
         used += 1
-        for mode in rows:
-            got = compare_layouts(gen.layout(tree, refine=mode == "refined"), true)
+        collapse["truth"] = [a + b for a, b in zip(collapse["truth"], sibling_collapse(true))]
+        for mode in MODES:
+            if mode == "teacher":
+                got = teacher_forced(gen.articulation, rec, texts[0])
+                collapse[mode] = [a + b for a, b in zip(collapse[mode], (got["collapsed"],
+                                                                          got["sibling_pairs"]))]
+            else:
+                laid = gen.layout(tree, refine=mode == "refined")
+                collapse[mode] = [a + b for a, b in zip(collapse[mode], sibling_collapse(laid))]
+                got = compare_layouts(laid, true)
             for k in KEYS:
                 rows[mode][k] += got[k]
             counts[mode] = [a + b for a, b in zip(counts[mode],
@@ -130,6 +232,9 @@ def layout_precision(data_root: str, *, n: int = 100, split: str = "test",
         summary[mode] = {**{f"{k}_mean": _stat(v, np.mean) for k, v in vals.items()},
                          **{f"{k}_median": _stat(v, np.median) for k, v in vals.items()},
                          "pairs": pairs, "extra": extra, "missed": missed}
+        if mode in collapse:
+            summary[mode]["collapsed"], summary[mode]["sibling_pairs"] = collapse[mode]
+    summary["truth"] = {"collapsed": collapse["truth"][0], "sibling_pairs": collapse["truth"][1]}
     return {"objects": used, "split": split, "length": length, "seed": seed,
             "checkpoint": checkpoint or "shipped", "summary": summary}
 
@@ -142,15 +247,21 @@ def table(report: dict) -> str:
     s = report["summary"]
     lines = ["| layout | box IoU (mean / median) | centre error, m (median) | centre error / body "
              "diagonal (median) | size error, m (median) | joint axis, deg (mean / median) | "
-             "hinge line, m (median) | matched / extra / missed parts |",
-             "|---|---|---|---|---|---|---|---|"]
-    for mode in ("raw", "refined"):
+             "hinge line, m (median) | matched / extra / missed parts | collapsed sibling pairs | "
+             "body frame: box IoU (mean) / centre error (median) |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
+    f = lambda v, fmt: "–" if v is None else format(v, fmt)     # noqa: E731
+    for mode in MODES:
         m = s[mode]
-        lines.append(f"| {mode} | {m['iou_mean']:.3f} / {m['iou_median']:.3f} | "
-                     f"{m['centre_m_median']:.3f} | {m['centre_rel_median']:.3f} | "
-                     f"{m['size_m_median']:.3f} | {m['axis_deg_mean']:.1f} / "
-                     f"{m['axis_deg_median']:.1f} | {m['axis_line_m_median']:.3f} | "
-                     f"{m['pairs']} / {m['extra']} / {m['missed']} |")
+        coll = (f"{m['collapsed']} of {m['sibling_pairs']}" if "collapsed" in m else "–")
+        lines.append(f"| {mode} | {f(m['iou_mean'], '.3f')} / {f(m['iou_median'], '.3f')} | "
+                     f"{f(m['centre_m_median'], '.3f')} | {f(m['centre_rel_median'], '.3f')} | "
+                     f"{f(m['size_m_median'], '.3f')} | {f(m['axis_deg_mean'], '.1f')} / "
+                     f"{f(m['axis_deg_median'], '.1f')} | {f(m['axis_line_m_median'], '.3f')} | "
+                     f"{m['pairs']} / {m['extra']} / {m['missed']} | {coll} | "
+                     f"{f(m['iou_body_mean'], '.3f')} / {f(m['centre_body_median'], '.3f')} |")
+    t = s["truth"]
+    lines.append(f"| truth | | | | | | | | {t['collapsed']} of {t['sibling_pairs']} | |")
     return "\n".join(lines)
 
 
@@ -172,7 +283,8 @@ def main(argv: list[str]) -> int:
               "description", file=sys.stderr)
         return 1
     print(f"Layout against the truth, {rep['objects']} {a.split} objects ({a.length} "
-          f"descriptions, seed {a.seed}), free-running decoding:\n")
+          f"descriptions, seed {a.seed}); raw / refined: free-running decoding, teacher: "
+          f"the true tree before each part's round:\n")
     print(table(rep))
     if a.out:
         with open(a.out, "w") as f:
