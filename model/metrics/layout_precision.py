@@ -33,11 +33,16 @@ MODES = ("raw", "refined", "teacher")
 COLLAPSE = 0.3             # sibling boxes sharing more than this of the smaller box's volume
 
 
-def box_iou(a, b) -> float:
-    """Axis-aligned 3D IoU of two parts' boxes."""
+def _box_intersection(a, b) -> float:
+    """Volume shared by two parts' axis-aligned boxes."""
     alo, ahi = a.bbox_center - a.bbox_size / 2, a.bbox_center + a.bbox_size / 2
     blo, bhi = b.bbox_center - b.bbox_size / 2, b.bbox_center + b.bbox_size / 2
-    inter = float(np.prod(np.clip(np.minimum(ahi, bhi) - np.maximum(alo, blo), 0.0, None)))
+    return float(np.prod(np.clip(np.minimum(ahi, bhi) - np.maximum(alo, blo), 0.0, None)))
+
+
+def box_iou(a, b) -> float:
+    """Axis-aligned 3D IoU of two parts' boxes."""
+    inter = _box_intersection(a, b)
     union = float(np.prod(a.bbox_size)) + float(np.prod(b.bbox_size)) - inter
     return inter / union if union > 0 else 0.0
 
@@ -83,9 +88,7 @@ def sibling_collapse(obj: ArticulatedObject) -> tuple[int, int]:
         for a in range(len(group)):
             for b in range(a + 1, len(group)):
                 pa, pb = group[a], group[b]
-                lo = np.maximum(pa.bbox_center - pa.bbox_size / 2, pb.bbox_center - pb.bbox_size / 2)
-                hi = np.minimum(pa.bbox_center + pa.bbox_size / 2, pb.bbox_center + pb.bbox_size / 2)
-                inter = float(np.prod(np.clip(hi - lo, 0.0, None)))
+                inter = _box_intersection(pa, pb)
                 small = min(float(np.prod(pa.bbox_size)), float(np.prod(pb.bbox_size)))
                 total += 1
                 bad += inter > COLLAPSE * max(small, 1e-12)
@@ -170,12 +173,14 @@ def teacher_forced(am, rec, text: str) -> dict:
             pred[node] = token_from_frame(rel, None if par < 0 else true_abs[par], am.frame)
     res = {k: [] for k in KEYS}
     diag = _diag(ArticulatedObject.from_tokens(toks, rec.joint_types, rec.parents, rec.labels))
-    part = {(w, n): Part.from_token(tok, int(item.jtypes[n]), name=w, label=item.labels[n],
-                                    parent=int(item.parents[n]))
-            for w, toks_of in (("p", pred), ("t", dict(enumerate(true_abs)))) for n, tok in toks_of.items()}
-    troot = part["t", int(np.nonzero(item.parents < 0)[0][0])]
-    for node in pred:                    # placed in the true tree: read in the true body too
-        _pair_errors(part["p", node], part["t", node], diag, res, troot, troot)
+    def part(tok, n: int, name: str):
+        return Part.from_token(tok, int(item.jtypes[n]), name=name, label=item.labels[n],
+                               parent=int(item.parents[n]))
+    r = int(np.nonzero(item.parents < 0)[0][0])
+    troot = part(true_abs[r], r, "t")
+    for node, tok in pred.items():       # placed in the true tree: read in the true body too
+        _pair_errors(part(tok, node, "p"), part(true_abs[node], node, "t"), diag, res, troot,
+                     troot)
     res["extra"], res["missed"], res["pairs"] = 0, 0, len(pred)
     placed = ArticulatedObject.from_tokens(np.stack([pred[n] for n in range(len(pred))]),
                                            item.jtypes, item.parents, item.labels)
