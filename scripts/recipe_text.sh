@@ -1,0 +1,101 @@
+#!/usr/bin/env bash
+# Retraining recipe of the text model (articulation transformer) and then the image model on
+# top of it, against a shape prior retrained by scripts/recipe_geometry.sh. Every stage is
+# resumable: run the script again after an interruption and it continues where it stopped
+# (training resumes from OUT/last.pt); no training process runs longer than CHUNK_MIN minutes.
+#
+#   bash scripts/recipe_text.sh                 # text, text-eval, render, image, image-eval
+#   STAGE=text bash scripts/recipe_text.sh      # one stage: text | text-eval | render | image | image-eval
+#
+# Settings (environment variables, defaults below): DATA, PRIOR, SDF, PRESET, TEXT_STEPS,
+# IMAGE_STEPS, FRAME, MODES, SEED, THREADS, CHUNK_MIN, RUNS. FRAME and MODES are the token
+# frame and articulation modes (docs/results/layout_training.md). Each run folder gets
+# RECIPE.md with the command lines, seed, data version, device and wall time of every chunk.
+# Nothing is copied into model/weights: the fp16 files land in RUNS, to be shipped only when
+# they beat the shipped ones on validation data.
+set -euo pipefail
+cd "$(dirname "${BASH_SOURCE[0]}")/.."
+source scripts/env.sh
+
+NAME=${NAME:-v4}
+DATA=${DATA:-data/prepared/$NAME}
+RENDERS=${RENDERS:-data/renders/$NAME}
+GEOMETRY=${GEOMETRY:-runs/geometry_${NAME}}
+PRESET=${PRESET:-small}
+PRIOR=${PRIOR:-$GEOMETRY/prior_small-fine.pt}
+SDF=${SDF:-$GEOMETRY/sdf_small-fine.pt}
+TEXT_STEPS=${TEXT_STEPS:-60000}
+IMAGE_STEPS=${IMAGE_STEPS:-20000}
+FRAME=${FRAME:-parent}
+MODES=${MODES:-4}
+SEED=${SEED:-0}
+THREADS=${THREADS:-2}
+CHUNK_MIN=${CHUNK_MIN:-140}
+RUNS=${RUNS:-runs/text_${NAME}}
+STAGE=${STAGE:-all}
+VERSION=${VERSION:-}
+TEXT_RUN=$RUNS/transformer
+IMAGE_RUN=$RUNS/image
+for f in "$DATA/manifest.json" "$PRIOR" "$SDF"; do
+  if [ ! -f "$f" ]; then
+    echo "[recipe] $f is missing: build the data and the shape prior first" \
+         "(bash scripts/recipe_geometry.sh), or set DATA / PRIOR / SDF" >&2
+    exit 2
+  fi
+done
+mkdir -p "$RUNS"
+source scripts/recipe_lib.sh
+
+common=(--prior "$PRIOR" --sdf "$SDF" --lr 5e-4 --own-inputs 0.5 --token-frame "$FRAME"
+        --art-modes "$MODES")
+
+stage_text() {
+  train_chunks transformer "$TEXT_RUN" "$TEXT_STEPS" "${common[@]}"
+  # the finished run once more: no step left, so it only writes transformer.pt and the copy
+  artformer train transformer --data "$DATA" --preset "$PRESET" --out "$TEXT_RUN" --seed "$SEED" \
+    --threads "$THREADS" --steps "$TEXT_STEPS" --no-progress --resume "${common[@]}" \
+    --half "$RUNS/transformer_$PRESET.pt"
+  record "$TEXT_RUN" "$(date -u +%FT%TZ) export: $RUNS/transformer_$PRESET.pt (fp16)"
+}
+
+stage_text_eval() {   # validation only: the test split is scored once, for the shipped file
+  local t0; t0=$(date -u +%s)
+  artformer train transformer --eval "$RUNS/transformer_$PRESET.pt" --data "$DATA" --split val \
+    --temperature 0.3 --follow-plan --no-progress --json "$RUNS/text_alignment_val.json"
+  mkdir -p "$RUNS/candidate"
+  ln -sf "$(realpath "$RUNS/transformer_$PRESET.pt")" "$RUNS/candidate/transformer_$PRESET.pt"
+  ln -sf "$(realpath "$SDF")" "$RUNS/candidate/sdf_$PRESET.pt"
+  ln -sf "$(realpath "$PRIOR")" "$RUNS/candidate/prior_$PRESET.pt"
+  artformer eval layout --data "$DATA" --split val --n 100 --checkpoint "$RUNS/candidate" \
+    --out "$RUNS/layout_val.json"
+  record "$RUNS" "$(date -u +%FT%TZ) text-eval (val alignment, val layout): $(( $(date -u +%s) - t0 )) s wall"
+}
+
+stage_render() {
+  if [ ! -f "$RENDERS/manifest.json" ]; then
+    local t0; t0=$(date -u +%s)
+    artformer data render --data "$DATA" --out "$RENDERS" --views 8 --workers "$THREADS"
+    record "$RUNS" "$(date -u +%FT%TZ) renders: \`artformer data render --data $DATA --out $RENDERS --views 8\`: $(( $(date -u +%s) - t0 )) s wall"
+  fi
+}
+
+stage_image() {
+  local img=(--renders "$RENDERS" --init "$RUNS/transformer_$PRESET.pt" --prior "$PRIOR"
+             --sdf "$SDF" --lr 2e-4 --warmup 100 --own-inputs 0.5)
+  train_chunks image "$IMAGE_RUN" "$IMAGE_STEPS" "${img[@]}"
+  artformer train image --data "$DATA" --preset "$PRESET" --out "$IMAGE_RUN" --seed "$SEED" \
+    --threads "$THREADS" --steps "$IMAGE_STEPS" --no-progress --resume "${img[@]}" \
+    --half "$RUNS/image_$PRESET.pt"
+  record "$IMAGE_RUN" "$(date -u +%FT%TZ) export: $RUNS/image_$PRESET.pt (fp16)"
+}
+
+stage_image_eval() {
+  artformer train image --eval "$RUNS/image_$PRESET.pt" --data "$DATA" --renders "$RENDERS" \
+    --split val --eval-views 0,1,2,3 --temperature 0 --json "$RUNS/image_val.json"
+}
+
+case "$STAGE" in
+  all) stage_text; stage_text_eval; stage_render; stage_image; stage_image_eval ;;
+  text|text-eval|render|image|image-eval) "stage_${STAGE//-/_}" ;;
+  *) echo "STAGE must be all|text|text-eval|render|image|image-eval, got $STAGE" >&2; exit 2 ;;
+esac
