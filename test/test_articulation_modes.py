@@ -82,3 +82,14 @@ def test_decoding_draws_one_mode_greedy_or_by_its_probability():
     assert {centre(s, 0.0) for s in range(4)} == {-0.2}
     drawn = {centre(s, 1.0) for s in range(12)}
     assert drawn == {-0.2, 0.2}
+
+
+def test_the_training_flags_reach_the_configs():
+    from model.articulation.commands import parser, training_overrides
+    args = parser().parse_args(["--data", "d", "--out", "o", "--art-modes", "4",
+                                "--mode-weight", "0.1", "--token-frame", "parent"])
+    net, train = preset("tiny", **training_overrides(args))
+    assert (net.art_modes, train.w_mode, train.token_frame) == (4, 0.1, "parent")
+    net, train = preset("tiny", **training_overrides(parser().parse_args(["--data", "d",
+                                                                           "--out", "o"])))
+    assert (net.art_modes, train.w_mode, train.token_frame) == (1, 1.0, "absolute")

@@ -70,6 +70,8 @@ def add_training_args(ap: argparse.ArgumentParser) -> None:
     ap.add_argument("--art-modes", type=int, metavar="K",
                     help="articulation head with K candidate tokens per part, one drawn when "
                          "decoding (default 1: one regressed token)")
+    ap.add_argument("--mode-weight", type=float, metavar="W",
+                    help="--art-modes: weight of the cross-entropy on the best mode (default 1)")
     ap.add_argument("--seed", type=int)
     ap.add_argument("--threads", type=int)
     ap.add_argument("--no-progress", action="store_true")
@@ -80,7 +82,7 @@ def training_overrides(args: argparse.Namespace, **more) -> dict:
     given = {"max_steps": args.steps, "max_minutes": args.minutes, "batch_size": args.batch_size,
              "lr": args.lr, "warmup_steps": args.warmup, "own_inputs": args.own_inputs,
              "token_frame": args.token_frame, "art_modes": args.art_modes,
-             "seed": args.seed, "threads": args.threads, **more}
+             "w_mode": args.mode_weight, "seed": args.seed, "threads": args.threads, **more}
     return {k: v for k, v in given.items() if v is not None}
 
 
