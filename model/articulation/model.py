@@ -66,7 +66,7 @@ class ArticulationModel:
         enc = get_text_encoder(self.text_encoder_name, self.text_max_length).encode(list(texts))
         return enc.states.float(), enc.mask
 
-    # -- labels -------------------------------------------------------------------------------
+    # -- tokens -------------------------------------------------------------------------------
     def network_tokens(self, tokens, parents) -> list[torch.Tensor]:
         """Absolute (K, 16) tokens of a tree -> the network's normalised tokens (one per node)."""
         rel = to_frame(np.asarray(tokens, dtype=np.float64).reshape(-1, 16), parents, self.frame)
@@ -79,6 +79,7 @@ class ArticulationModel:
         rel = (torch.stack(list(tokens)).float() * self.tok_std + self.tok_mean).double().numpy()
         return from_frame(rel, parents, self.frame)
 
+    # -- labels -------------------------------------------------------------------------------
     def nearest_label(self, cs_n: torch.Tensor) -> torch.Tensor:
         """Normalised cs (K, 64) -> index into the label table (K,)."""
         return torch.cdist(cs_n.float(), self.table_cs_n).argmin(-1)

@@ -126,15 +126,16 @@ def _pair_errors(p, t, diag: float, out: dict, proot, troot) -> None:
                                                          t.joint.origin, a2))
 
 
-def _diag(true: ArticulatedObject) -> float:
-    return max(float(np.linalg.norm(true.parts[true.root].bbox_size)), 1e-6)
+def _diag(root) -> float:
+    """The diagonal of a body part's box (metres, at least 1 um)."""
+    return max(float(np.linalg.norm(root.bbox_size)), 1e-6)
 
 
 def compare_layouts(pred: ArticulatedObject, true: ArticulatedObject) -> dict:
     """Per-pair errors of one decoded object against the true one (lists under KEYS), and
     its extra / missed part counts."""
     pairs, extra, missed = match_parts(pred, true)
-    diag = _diag(true)
+    diag = _diag(true.parts[true.root])
     out = {k: [] for k in KEYS}
     for i, j in pairs:
         _pair_errors(pred.parts[i], true.parts[j], diag, out, pred.parts[pred.root],
@@ -172,12 +173,13 @@ def teacher_forced(am, rec, text: str) -> dict:
             par = int(item.parents[node])
             pred[node] = token_from_frame(rel, None if par < 0 else true_abs[par], am.frame)
     res = {k: [] for k in KEYS}
-    diag = _diag(ArticulatedObject.from_tokens(toks, rec.joint_types, rec.parents, rec.labels))
+
     def part(tok, n: int, name: str):
         return Part.from_token(tok, int(item.jtypes[n]), name=name, label=item.labels[n],
                                parent=int(item.parents[n]))
     r = int(np.nonzero(item.parents < 0)[0][0])
     troot = part(true_abs[r], r, "t")
+    diag = _diag(troot)
     for node, tok in pred.items():       # placed in the true tree: read in the true body too
         _pair_errors(part(tok, node, "p"), part(true_abs[node], node, "t"), diag, res, troot,
                      troot)
@@ -221,12 +223,12 @@ def layout_precision(data_root: str, *, n: int = 100, split: str = "test",
         for mode in MODES:
             if mode == "teacher":
                 got = teacher_forced(gen.articulation, rec, texts[0])
-                collapse[mode] = [a + b for a, b in zip(collapse[mode], (got["collapsed"],
-                                                                          got["sibling_pairs"]))]
+                pair = (got["collapsed"], got["sibling_pairs"])
             else:
                 laid = gen.layout(tree, refine=mode == "refined")
-                collapse[mode] = [a + b for a, b in zip(collapse[mode], sibling_collapse(laid))]
+                pair = sibling_collapse(laid)
                 got = compare_layouts(laid, true)
+            collapse[mode] = [a + b for a, b in zip(collapse[mode], pair)]
             for k in KEYS:
                 rows[mode][k] += got[k]
             counts[mode] = [a + b for a, b in zip(counts[mode],
