@@ -57,20 +57,21 @@ stage_data() {
 
 stage_cache() {   # the one-time exact box-frame re-sampling of train/val, cached in SDF_RUN/cache
   local t0; t0=$(date -u +%s)
-  python - "$DATA" "$PRESET" "$SEED" "$SDF_RUN/cache" <<'EOF'
+  python - "$DATA" "$PRESET" "$SEED" "$SDF_RUN/cache" "$THREADS" <<'EOF'
 import sys
 from model.geometry.config import get_preset
 from model.geometry.data import load_parts
 data, preset, seed, cache = sys.argv[1], sys.argv[2], int(sys.argv[3]), sys.argv[4]
 max_sdf = get_preset(preset).sdf_train.max_sdf
-for split in ("train", "val"):
-    p = load_parts(data, split, progress=True, max_sdf=max_sdf, seed=seed, cache_dir=cache)
+for split in ("train", "val"):   # resumable: finished shards of 128 objects are kept
+    p = load_parts(data, split, progress=True, max_sdf=max_sdf, seed=seed, cache_dir=cache,
+                   workers=int(sys.argv[5]))
     print(f"{split}: {len(p)} parts cached in {cache}")
 EOF
   record "$SDF_RUN" "$(date -u +%FT%TZ) box-frame samples of $DATA cached in $SDF_RUN/cache: $(( $(date -u +%s) - t0 )) s wall"
 }
 
-stage_sdf()   { [ -d "$SDF_RUN/cache" ] || stage_cache; train_chunks sdf "$SDF_RUN" "$SDF_STEPS"; }
+stage_sdf()   { ls "$SDF_RUN"/cache/parts_val_*.pt >/dev/null 2>&1 || stage_cache; train_chunks sdf "$SDF_RUN" "$SDF_STEPS"; }
 stage_prior() { train_chunks prior "$PRIOR_RUN" "$PRIOR_STEPS" --sdf "$SDF_RUN/ckpt.pt"; }
 
 stage_eval() {

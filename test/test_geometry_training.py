@@ -213,3 +213,36 @@ def test_box_frame_samples_exact_and_fallback(prim_data):
 def approx_ref(ps, i):
     q = ps.sdf[i, :, :3].float().abs() - 0.95
     return q.clamp_min(0).norm(dim=-1) + q.max(-1).values.clamp_max(0)
+
+
+def test_box_frame_cache_in_shards_resumes_and_ignores_workers(prim_data, tmp_path, monkeypatch):
+    import model.geometry.data as gd
+    ref = gd.load_parts(prim_data, "train")                  # sequential, no cache
+    ids = list(dict.fromkeys(ref.object_ids))
+    assert len(ids) >= 3
+    monkeypatch.setattr(gd, "SHARD", 1)
+    read_objects, seen = gd._read_objects, []
+
+    def failing(root, oids, rng, **kw):
+        seen.extend(oids)
+        if oids[0] == ids[2]:
+            raise RuntimeError("interrupted")
+        return read_objects(root, oids, rng, **kw)
+
+    cache = tmp_path / "cache"
+    monkeypatch.setattr(gd, "_read_objects", failing)
+    with pytest.raises(RuntimeError, match="interrupted"):
+        gd.load_parts(prim_data, "train", cache_dir=cache)
+    shards = sorted((cache).glob("*.shards/*.pt"))
+    assert len(shards) == 2 and not list(cache.glob("parts_train_*.pt"))
+    seen.clear()
+    monkeypatch.setattr(gd, "_read_objects", lambda root, oids, rng, **kw:
+                        seen.extend(oids) or read_objects(root, oids, rng, **kw))
+    resumed = gd.load_parts(prim_data, "train", cache_dir=cache)
+    assert seen == ids[2:]                                   # the two finished shards are kept
+    assert not list(cache.glob("*.shards")) and len(list(cache.glob("parts_train_*.pt"))) == 1
+    parallel = gd.load_parts(prim_data, "train", workers=2)  # forked workers, no cache
+    for ps in (resumed, parallel):
+        assert ps.object_ids == ref.object_ids and ps.texts == ref.texts
+        assert torch.equal(ps.points, ref.points) and torch.equal(ps.sdf, ref.sdf)
+        assert torch.equal(ps.box_scale, ref.box_scale)

@@ -143,7 +143,7 @@ CACHE_VERSION = 1
 def load_parts(root: str | Path, split: str, *, max_objects: int | None = None,
                progress: bool = False, with_sdf: bool = True, max_sdf: int | None = None,
                seed: int = 0, cache_dir: str | Path | None = None,
-               exact: bool = True) -> PartSet:
+               exact: bool = True, workers: int = 1) -> PartSet:
     """Load every part of ``split`` (train / val / test) of a prepared dataset, in the box
     frame (see :func:`box_frame`).
 
@@ -152,6 +152,12 @@ def load_parts(root: str | Path, split: str, *, max_objects: int | None = None,
     uniform, 70 % near the surface, sigma 0.012); otherwise the stored iso-frame samples are
     mapped (:func:`to_box_sdf`, first-order distances). ``with_sdf=False`` skips the SDF,
     ``max_sdf`` caps SDF samples per part. ``cache_dir`` keeps the result as a .pt file.
+
+    The exact re-sampling (libigl, one core) runs in ``workers`` forked processes over shards
+    of SHARD objects. With ``cache_dir`` every finished shard is kept on disk until the whole
+    split is cached, so an interrupted run resumes at the first missing shard. Each object
+    gets its own sampling seed, drawn up front from ``seed`` in split order, so the samples
+    do not depend on ``workers`` or on interruptions.
     """
     man = fmt.load_manifest(root)
     cache = None
@@ -167,11 +173,18 @@ def load_parts(root: str | Path, split: str, *, max_objects: int | None = None,
     ids = fmt.split_ids(root, split)
     if max_objects is not None:
         ids = ids[:max_objects]
-    it = ids
-    if progress:
-        from tqdm import tqdm
-        it = tqdm(ids, desc=f"load {split}", unit="obj")
-    col = _read_objects(root, it, rng, with_sdf=with_sdf, max_sdf=max_sdf, exact=exact)
+    if exact and with_sdf and all((Path(root) / "meshes" / i).is_dir() for i in ids):
+        # exactly the seeds the sequential loop below would draw, one per object
+        seeds = [int(rng.integers(2**31)) for _ in ids]
+        col = _read_sharded(root, ids, seeds, max_sdf=max_sdf, workers=workers,
+                            shard_dir=None if cache is None else cache.with_suffix(".shards"),
+                            progress=progress, desc=f"load {split}")
+    else:
+        it = ids
+        if progress:
+            from tqdm import tqdm
+            it = tqdm(ids, desc=f"load {split}", unit="obj")
+        col = _read_objects(root, it, rng, with_sdf=with_sdf, max_sdf=max_sdf, exact=exact)
     if not col["points"]:
         raise ValueError(f"{root}: split {split!r} has no objects")
     texts = col["texts"]
@@ -189,20 +202,77 @@ def load_parts(root: str | Path, split: str, *, max_objects: int | None = None,
         buf = io.BytesIO()
         torch.save(out, buf)
         fmt.atomic_write_bytes(cache, buf.getvalue())
+        del buf
+        import shutil
+        shutil.rmtree(cache.with_suffix(".shards"), ignore_errors=True)
     return PartSet(**out)
 
 
-def _read_objects(root, ids, rng: np.random.Generator, *, with_sdf: bool, max_sdf: int | None,
-                  exact: bool) -> dict[str, list]:
+SHARD = 128   # objects per cache shard of the exact re-sampling
+COLUMNS = ("points", "sdf", "box_center", "box_scale", "center", "scale", "texts", "object_ids",
+           "part_index")
+
+
+def _shard_job(job: tuple) -> tuple[int, dict | None]:
+    """One shard of _read_sharded (runs in a worker): its columns, or None once written to
+    the shard file."""
+    index, root, ids, seeds, max_sdf, path = job
+    col = _read_objects(root, ids, None, with_sdf=True, max_sdf=max_sdf, exact=True, seeds=seeds)
+    if path is None:
+        return index, col
+    import io
+    buf = io.BytesIO()
+    torch.save(col, buf)
+    fmt.atomic_write_bytes(Path(path), buf.getvalue())
+    return index, None
+
+
+def _read_sharded(root, ids: list, seeds: list, *, max_sdf: int | None, workers: int,
+                  shard_dir: Path | None, progress: bool, desc: str) -> dict[str, list]:
+    """_read_objects with one seed per object, over shards of SHARD objects in ``workers``
+    processes; finished shards kept as ``shard_dir/NNNNN.pt`` (none: kept in memory)."""
+    from model.core.runtime import map_jobs
+    jobs = []
+    for n, a in enumerate(range(0, len(ids), SHARD)):
+        path = None if shard_dir is None else shard_dir / f"{n:05d}.pt"
+        jobs.append((n, str(root), ids[a:a + SHARD], seeds[a:a + SHARD], max_sdf,
+                     None if path is None else str(path)))
+    if shard_dir is not None:
+        shard_dir.mkdir(parents=True, exist_ok=True)
+    todo = [j for j in jobs if j[5] is None or not Path(j[5]).exists()]
+    bar = None
+    if progress:
+        from tqdm import tqdm
+        bar = tqdm(total=len(ids), initial=len(ids) - sum(len(j[2]) for j in todo),
+                   desc=desc, unit="obj")
+    done: dict[int, dict] = {}
+    for n, col in map_jobs(_shard_job, todo, workers=workers, chunksize=1):
+        if col is not None:
+            done[n] = col
+        if bar:
+            bar.update(len(jobs[n][2]))
+    if bar:
+        bar.close()
+    out: dict[str, list] = {k: [] for k in COLUMNS}
+    for n, *_, path in jobs:
+        col = done.pop(n) if n in done else torch.load(path, weights_only=False)
+        for k, v in col.items():
+            out.setdefault(k, []).extend(v)
+    return out
+
+
+def _read_objects(root, ids, rng: np.random.Generator | None, *, with_sdf: bool,
+                  max_sdf: int | None, exact: bool, seeds: list | None = None
+                  ) -> dict[str, list]:
     """The parts of objects ``ids``, as lists to concatenate: box-frame ``points``, ``sdf``,
     ``box_center`` and ``box_scale`` (tensors of one part or one object each), the iso-cube
     ``center`` and ``scale`` (arrays per object), and per part its ``texts``, ``object_ids``
     and ``part_index``. Points and SDF samples per part are those of the first object
-    (``max_sdf`` caps the SDF samples)."""
-    col: dict[str, list] = {k: [] for k in ("points", "sdf", "box_center", "box_scale", "center",
-                                            "scale", "texts", "object_ids", "part_index")}
+    (``max_sdf`` caps the SDF samples). ``seeds`` gives each object's exact-sampling seed
+    instead of drawing it from ``rng``."""
+    col: dict[str, list] = {k: [] for k in COLUMNS}
     P = S = None
-    for oid in ids:
+    for j, oid in enumerate(ids):
         rec = fmt.load_record(root, oid)
         arr = fmt.load_part_arrays(root, oid)
         K = arr["points"].shape[0]
@@ -218,7 +288,8 @@ def _read_objects(root, ids, rng: np.random.Generator, *, with_sdf: bool, max_sd
         col["center"].append(center)
         col["scale"].append(scale)
         pts, sdf, bcs, bss = _object_samples(root, oid, arr, center, scale, P, S, rng,
-                                             exact=exact, with_sdf=with_sdf)
+                                             exact=exact, with_sdf=with_sdf,
+                                             seed=None if seeds is None else seeds[j])
         col["points"] += pts
         col["sdf"] += sdf
         col["box_center"] += bcs
@@ -231,8 +302,8 @@ def _read_objects(root, ids, rng: np.random.Generator, *, with_sdf: bool, max_sd
 
 
 def _object_samples(root, oid: str, arr: dict, center: np.ndarray, scale: np.ndarray, P: int,
-                    S: int, rng: np.random.Generator, *, exact: bool, with_sdf: bool
-                    ) -> tuple[list, list, list, list]:
+                    S: int, rng: np.random.Generator | None, *, exact: bool, with_sdf: bool,
+                    seed: int | None = None) -> tuple[list, list, list, list]:
     """Box-frame points (.., P, 3), SDF samples (.., S, 4; none without ``with_sdf``), box
     centres and stretches (.., 3) of one object's K parts, as lists of tensors: re-sampled
     exactly from the prepared meshes (one tensor per part) when ``exact`` and the meshes are
@@ -240,8 +311,9 @@ def _object_samples(root, oid: str, arr: dict, center: np.ndarray, scale: np.nda
     mesh_dir = Path(root) / "meshes" / oid
     pts, sdf, bcs, bss = [], [], [], []
     if exact and with_sdf and mesh_dir.is_dir():
-        for p, d, c, s in _exact_object(mesh_dir, len(scale), center, scale, P, S,
-                                        int(rng.integers(2**31))):
+        if seed is None:
+            seed = int(rng.integers(2**31))
+        for p, d, c, s in _exact_object(mesh_dir, len(scale), center, scale, P, S, seed):
             pts.append(torch.from_numpy(p).half().unsqueeze(0))
             sdf.append(torch.from_numpy(d).half().unsqueeze(0))
             bcs.append(torch.from_numpy(c).float().unsqueeze(0))

@@ -107,10 +107,12 @@ def train_sdf(args: RunArgs) -> dict:
     out.mkdir(parents=True, exist_ok=True)
     max_sdf = preset.sdf_train.max_sdf
     cache = out / "cache"
+    workers = max(1, (args.threads or preset.sdf_train.threads) // dist.world)
     train = load_parts(args.data, "train", progress=dist.main and args.progress, max_sdf=max_sdf,
-                       seed=args.seed, cache_dir=cache)
+                       seed=args.seed, cache_dir=cache, workers=workers)
     try:
-        val = load_parts(args.data, "val", max_sdf=max_sdf, seed=args.seed, cache_dir=cache)
+        val = load_parts(args.data, "val", max_sdf=max_sdf, seed=args.seed, cache_dir=cache,
+                         workers=workers)
     except (KeyError, ValueError):
         val = train
     tcfg = _train_cfg(preset.sdf_train, args, len(train), dist.world)
