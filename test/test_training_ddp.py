@@ -57,6 +57,10 @@ def test_loop_steps_validates_saves_and_resumes(tmp_path):
     cfg.steps = 50
     st2 = train_loop(model, opt, cfg, step_fn, val_fn=val_fn, state=LoopState.of(st.entries()))
     assert st2.step == 50 and len(st2.history) == 5 and st2.elapsed >= st.elapsed
+    # a finished run resumed at its end (to export it) is not validated a second time
+    st3 = train_loop(model, opt, cfg, step_fn, val_fn=val_fn, state=LoopState.of(st2.entries()))
+    assert st3.step == 50 and len(st3.history) == 5
+    assert len((tmp_path / "log.jsonl").read_text().splitlines()) == 5
 
 
 def test_wall_clock_budget_stops_and_counts_resumed_time():

@@ -219,7 +219,9 @@ def train_loop(model: torch.nn.Module, opt: torch.optim.Optimizer, cfg: LoopConf
     net = dist.wrap(model, unused_params)
     run = _Run(cfg, state, dist)
     model.train()
-    validated = -1
+    # a resumed run whose last validation was at its current step (say, a finished run run
+    # once more to export it) is not validated again
+    validated = state.history[-1].get("step", -1) if state.history else -1
     lr = cfg.lr
     while state.step < cfg.steps:
         if run.over_budget():
