@@ -74,11 +74,14 @@ EOF
 stage_sdf()   { ls "$SDF_RUN"/cache/parts_val_*.pt >/dev/null 2>&1 || stage_cache; train_chunks sdf "$SDF_RUN" "$SDF_STEPS"; }
 stage_prior() { train_chunks prior "$PRIOR_RUN" "$PRIOR_STEPS" --sdf "$SDF_RUN/ckpt.pt"; }
 
-stage_eval() {
+stage_eval() {   # validation only, new weights and the shipped ones side by side; the test
+                 # split is scored once, for the weights that ship (docs/geometry.md)
   local t0; t0=$(date -u +%s)
-  artformer eval geometry --data "$DATA" --sdf "$SDF_RUN/ckpt.pt" --prior "$PRIOR_RUN/ckpt.pt" \
-    --per-label 30 --samples-per-label 8 --json "$RUNS/eval_geometry.json" --figures "$RUNS/figures"
-  record "$RUNS" "$(date -u +%FT%TZ) eval: \`artformer eval geometry --data $DATA --sdf $SDF_RUN/ckpt.pt --prior $PRIOR_RUN/ckpt.pt --per-label 30 --samples-per-label 8\`: $(( $(date -u +%s) - t0 )) s wall"
+  local args=(--data "$DATA" --split val --per-label 30 --samples-per-label 8)
+  artformer eval geometry "${args[@]}" --sdf "$SDF_RUN/ckpt.pt" --prior "$PRIOR_RUN/ckpt.pt" \
+    --json "$RUNS/eval_geometry_val.json" --figures "$RUNS/figures"
+  artformer eval geometry "${args[@]}" --json "$RUNS/eval_geometry_val_shipped.json"
+  record "$RUNS" "$(date -u +%FT%TZ) eval: \`artformer eval geometry ${args[*]}\` with --sdf $SDF_RUN/ckpt.pt --prior $PRIOR_RUN/ckpt.pt and with the shipped weights: $(( $(date -u +%s) - t0 )) s wall"
 }
 
 stage_export() {   # stripped fp16 copies beside the runs (committing them is a separate step)
