@@ -177,7 +177,7 @@ def load_parts(root: str | Path, split: str, *, max_objects: int | None = None,
         # exactly the seeds the sequential loop below would draw, one per object
         seeds = [int(rng.integers(2**31)) for _ in ids]
         col = _read_sharded(root, ids, seeds, max_sdf=max_sdf, workers=workers,
-                            shard_dir=None if cache is None else cache.with_suffix(".shards"),
+                            shard_dir=None if cache is None else cache.with_suffix(f".shards{SHARD}"),
                             progress=progress, desc=f"load {split}")
     else:
         it = ids
@@ -204,7 +204,7 @@ def load_parts(root: str | Path, split: str, *, max_objects: int | None = None,
         fmt.atomic_write_bytes(cache, buf.getvalue())
         del buf
         import shutil
-        shutil.rmtree(cache.with_suffix(".shards"), ignore_errors=True)
+        shutil.rmtree(cache.with_suffix(f".shards{SHARD}"), ignore_errors=True)
     return PartSet(**out)
 
 
