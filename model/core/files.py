@@ -28,6 +28,16 @@ def atomic_write_bytes(path: os.PathLike, data: bytes) -> None:
         raise
 
 
+def atomic_torch_save(path: os.PathLike, obj: Any) -> None:
+    """``torch.save`` through atomic_write_bytes (serialised in memory first)."""
+    import io
+
+    import torch
+    buf = io.BytesIO()
+    torch.save(obj, buf)
+    atomic_write_bytes(path, buf.getvalue())
+
+
 def atomic_write_text(path: os.PathLike, text: str) -> None:
     atomic_write_bytes(path, text.encode())
 

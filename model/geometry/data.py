@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from model.core.files import atomic_torch_save
 from model.data import format as fmt
 
 log = logging.getLogger(__name__)
@@ -198,11 +199,7 @@ def load_parts(root: str | Path, split: str, *, max_objects: int | None = None,
                data_version=str(man.get("data_version", "")), root=str(root),
                text_vocab=vocab, text_ids=torch.tensor([lookup[t] for t in texts]))
     if cache is not None:
-        import io
-        buf = io.BytesIO()
-        torch.save(out, buf)
-        fmt.atomic_write_bytes(cache, buf.getvalue())
-        del buf
+        atomic_torch_save(cache, out)
         import shutil
         shutil.rmtree(cache.with_suffix(f".shards{SHARD}"), ignore_errors=True)
     return PartSet(**out)
@@ -220,10 +217,7 @@ def _shard_job(job: tuple) -> tuple[int, dict | None]:
     col = _read_objects(root, ids, None, with_sdf=True, max_sdf=max_sdf, exact=True, seeds=seeds)
     if path is None:
         return index, col
-    import io
-    buf = io.BytesIO()
-    torch.save(col, buf)
-    fmt.atomic_write_bytes(Path(path), buf.getvalue())
+    atomic_torch_save(path, col)
     return index, None
 
 
@@ -257,7 +251,7 @@ def _read_sharded(root, ids: list, seeds: list, *, max_sdf: int | None, workers:
     for n, *_, path in jobs:
         col = done.pop(n) if n in done else torch.load(path, weights_only=False)
         for k, v in col.items():
-            out.setdefault(k, []).extend(v)
+            out[k].extend(v)
     return out
 
 

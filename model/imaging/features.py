@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from model.data.format import atomic_write_bytes
+from model.core.files import atomic_torch_save
 
 from .renders import load_render_manifest, rendered_ids, view_paths
 
@@ -72,8 +72,6 @@ def build_feature_cache(render_root: os.PathLike, ids: list[str], *, batch_size:
     default (``batch_size`` 0) is the encoder's ``ENCODE_BATCH`` (session 13: 28 views/s in
     passes of 4 against 19 in 16 on one thread, 27-30 against 23 on two; 448 px 6.8 views/s
     a thread in passes of 4)."""
-    import io
-
     from model.core.runtime import keep_heap_mapped
     from model.encoders.image import (ENCODE_BATCH, IMAGE_SIZE, ImageEncoder, ImageEncoderConfig,
                                       preprocess)
@@ -120,9 +118,7 @@ def build_feature_cache(render_root: os.PathLike, ids: list[str], *, batch_size:
         all_ids, feats = todo, new
     out = {"ids": all_ids, "feats": torch.from_numpy(feats), "split": split,
            "render_version": manifest["render_version"], "weights": tag, "image_size": size}
-    buf = io.BytesIO()
-    torch.save(out, buf)
-    atomic_write_bytes(path, buf.getvalue())
+    atomic_torch_save(path, out)
     log.info("cached trunk features of %d objects (%d new) -> %s", len(all_ids), len(todo), path)
     return out
 

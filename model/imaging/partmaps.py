@@ -23,7 +23,6 @@ later are added (the file is rewritten atomically).
 """
 from __future__ import annotations
 
-import io
 import logging
 import os
 import time
@@ -147,11 +146,8 @@ def build_partmaps(data_root: str, render_root: str, labels: list[str], *, worke
     pm = {"format": PARTMAP_FORMAT, "grid": grid, "size": RENDER_SIZE, "labels": list(labels),
           "data_version": version, "ids": keep, "maps": torch.stack([have[i] for i in keep])}
     if jobs:
-        buf = io.BytesIO()
-        torch.save(pm, buf)
-        from model.data.format import atomic_write_bytes
-        partmap_path(render_root, grid).parent.mkdir(parents=True, exist_ok=True)
-        atomic_write_bytes(partmap_path(render_root, grid), buf.getvalue())
+        from model.core.files import atomic_torch_save
+        atomic_torch_save(partmap_path(render_root, grid), pm)
     log.info("part maps: %d objects (%d new, %d failed) in %.1f s", len(keep), len(jobs) - len(failed),
              len(failed), time.perf_counter() - t0)
     pm["failed"] = failed
