@@ -175,9 +175,16 @@ def test_refine_switch_and_eval_audit_rows(tiny, tmp_path, capsys):
     from model.metrics import audit_eval
     from model.pipeline.generator import Generator
     raw = Generator.load(GenerationConfig(checkpoint=str(tiny), resolution=24, steps=4,
-                                          threads=1, refine=False))
+                                          threads=1, refine=False, face_budget=1500))
     [res] = raw.generate("a cabinet with two drawers", seed=0)
     assert "refine" not in res.timings and "refine" not in res.obj.metadata
+    budget = res.obj.metadata["simplify"]      # raw output is simplified towards the budget
+    assert budget["simplify_tolerance"] > 0
+    assert budget["faces"] == sum(len(p.mesh.faces) for p in res.obj.parts)
+    raw.config.face_budget = 0                 # ... and only when there is one
+    [full] = raw.generate("a cabinet with two drawers", seed=0)
+    assert "simplify" not in full.obj.metadata
+    assert sum(len(p.mesh.faces) for p in full.obj.parts) > 1.5 * budget["faces"]
     prompts = tmp_path / "p.txt"
     prompts.write_text("a cabinet with two drawers\n")
     assert audit_eval.main(["eval", "audit", "--checkpoint", str(tiny), "--seeds", "1",

@@ -105,6 +105,47 @@ def test_floaters_dropped_and_face_budget_kept():
     assert obj.parts[0].mesh.is_watertight
 
 
+def test_raw_output_gets_the_face_budget_and_nothing_else():
+    # --no-refine: the budget is an export setting; floaters, boxes, joints and collision
+    # stay as the model made them
+    from model.refine import simplify_meshes
+
+    obj = _meshed(_sloppy_cabinet())
+    speck = trimesh.creation.box(extents=(0.005, 0.005, 0.005))
+    speck.apply_translation((0.2, 0.3, 0.9))
+    obj.parts[0].mesh = trimesh.util.concatenate(
+        [trimesh.creation.icosphere(5, radius=0.45).apply_translation((0, 0, 0.5)), speck])
+    boxes = [(p.bbox_center.copy(), p.bbox_size.copy()) for p in obj.parts]
+    joints = [(p.joint.origin.copy(), p.joint.axis.copy()) for p in obj.parts]
+    untouched = [len(p.mesh.faces) for p in obj.parts[1:]]
+    rep = simplify_meshes(obj, 2000)
+    assert rep["simplify_tolerance"] > 0 and rep["faces"] <= 2000
+    assert rep["faces"] == sum(len(p.mesh.faces) for p in obj.parts)
+    assert len(obj.parts[0].mesh.split(only_watertight=False)) == 2     # the speck stays
+    assert all(np.allclose(c, p.bbox_center) and np.allclose(s, p.bbox_size)
+               for (c, s), p in zip(boxes, obj.parts))
+    assert all(np.allclose(o, p.joint.origin) and np.allclose(a, p.joint.axis)
+               for (o, a), p in zip(joints, obj.parts))
+    assert [len(p.mesh.faces) for p in obj.parts[1:]] == untouched      # boxes: 12 faces
+    before = [len(p.mesh.faces) for p in obj.parts]
+    assert simplify_meshes(obj, 0)["simplify_tolerance"] == 0           # 0: no budget
+    assert [len(p.mesh.faces) for p in obj.parts] == before
+
+
+def test_raw_simplification_adds_no_pieces():
+    # a thin wall pinched off by simplifying is dropped; the model's own pieces are kept
+    from model.refine import _largest_pieces
+
+    wall = trimesh.creation.box(extents=(0.3, 0.3, 0.3))
+    sliver = trimesh.creation.box(extents=(0.01, 0.01, 0.01)).apply_translation((1, 0, 0))
+    speck = trimesh.creation.box(extents=(0.02, 0.02, 0.02)).apply_translation((0, 1, 0))
+    three = trimesh.util.concatenate([wall, sliver, speck])
+    kept = _largest_pieces(three, 2)
+    assert len(kept.split(only_watertight=False)) == 2 and kept.is_watertight
+    assert np.isclose(kept.area, wall.area + speck.area)
+    assert _largest_pieces(three, 3) is three
+
+
 @pytest.mark.parametrize("budget", [200_000, 12_000, 3_000, 900])
 def test_simplification_steps_made_ahead_stop_where_the_budget_loop_stops(budget):
     # the meshing lanes make the first steps per part (prepare.py); refinement must still

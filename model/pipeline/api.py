@@ -69,7 +69,7 @@ class GenerationConfig:
     instances: bool = True             # parts of one label and the same box (a stack's
                                        # drawers, their handles) share the first one's
                                        # decoded shape: meshed once, moved to each box
-    face_budget: int = 30000           # visual faces per object after refinement (0: all)
+    face_budget: int = 30000           # visual faces per object, refined or raw (0: all)
 
 
 @dataclass

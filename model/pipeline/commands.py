@@ -41,7 +41,8 @@ def _model_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-refine", dest="refine", action="store_false",
                    help="export the raw model output (no layout / mesh refinement)")
     p.add_argument("--face-budget", type=int, default=30000,
-                   help="visual faces per object after refinement (default 30000; 0: all)")
+                   help="visual faces per object, simplified to it with or without "
+                        "refinement (default 30000; 0: all)")
     p.add_argument("--threads", type=int, default=2, help="torch CPU threads (2)")
     p.add_argument("--no-preview", action="store_true", help="skip preview.png")
     p.add_argument("--mesh-uri", default="file",

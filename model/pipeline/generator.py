@@ -301,7 +301,8 @@ class Generator:
             res = [part_resolution(obj.parts[new[n]].bbox_size, cfg) for n in meshed]
             grids = self.shape.decode_grids(z[meshed], resolution=res) if meshed else []
         tasks = [PartTask(new[n], g, obj.parts[new[n]].bbox_center, obj.parts[new[n]].bbox_size,
-                         prepare=cfg.refine, simplify=cfg.face_budget > 0)
+                         prepare=cfg.refine or cfg.face_budget > 0, floaters=cfg.refine,
+                         simplify=cfg.face_budget > 0)
                  for n, g in zip(meshed, grids)]
         done = {d.index: d for d in self.parts.finish(tasks)}
         for k, rep in copy_of.items():
@@ -334,15 +335,21 @@ class Generator:
         if fallbacks:
             log.warning("parts %s had no surface; exported as their boxes", fallbacks)
         obj.metadata["box_fallback_parts"] = fallbacks
+        kept = frozenset(k for k in range(tree.num_nodes) if len(tree.kept) and tree.kept[k])
         if cfg.refine:
             from model.refine import RefineConfig, refine_meshes
             t = time.perf_counter()
-            kept = frozenset(k for k in range(tree.num_nodes) if len(tree.kept) and tree.kept[k])
             refined["meshes"] = refine_meshes(obj, RefineConfig(face_budget=cfg.face_budget),
                                               frozen=kept, prepared=prepared)
             refine_s += time.perf_counter() - t
             timings["refine"] = refine_s
             obj.metadata["refine"] = refined
+        elif cfg.face_budget > 0:    # raw output: the face budget and nothing else
+            from model.refine import simplify_meshes
+            t = time.perf_counter()
+            obj.metadata["simplify"] = simplify_meshes(obj, cfg.face_budget, frozen=kept,
+                                                       prepared=prepared)
+            timings["simplify"] = time.perf_counter() - t
         _unique_names(obj)
         try:
             obj.validate()

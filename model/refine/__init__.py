@@ -5,6 +5,7 @@ without changing its structure (labels, counts, joint types, parents).
     report = refine_layout(obj)          # boxes + joints, before meshing (layout.py)
     done = place_stated_sides(obj, spatial)   # ... and the sides it states (arrange.py)
     report = refine_meshes(obj)          # after meshing (meshes.py)
+    report = simplify_meshes(obj, 30000) # raw output: only the face budget
 
 Both work in place and return what they changed; :class:`RefineConfig` switches each step
 for ablations (``artformer eval`` measures them, docs/refine.md).
@@ -15,7 +16,9 @@ import time
 from dataclasses import dataclass, field
 from typing import Optional
 
-from model.core import ArticulatedObject
+import numpy as np
+
+from model.core import ArticulatedObject, meshops
 
 from .arrange import arrange_stated, place_stated_sides
 from .layout import LayoutConfig, face_of, refine_layout
@@ -41,33 +44,12 @@ def refine_meshes(obj: ArticulatedObject, config: Optional[RefineConfig] = None,
     from that part's current mesh (the pipeline makes them while meshing); the other parts
     are prepared here."""
     from . import meshes as M
-    from .prepare import STEPS_AHEAD, prepare_mesh
 
     cfg = config or RefineConfig()
     t0 = time.perf_counter()
-    budget = int(0.85 * cfg.face_budget)     # 15 % headroom: carving adds faces after simplifying
-    ready = {}
-    for k, p in enumerate(obj.parts):
-        if k in frozen or p.mesh is None or not len(p.mesh.faces):
-            continue
-        ready[k] = (prepared or {}).get(k) or prepare_mesh(p.mesh, cfg.floaters,
-                                                            STEPS_AHEAD if budget > 0 else 0)
-    report: dict = {"simplify_tolerance": 0.0}
-    # simplify_to_budget's steps: each taken while the object is over budget; the first
-    # ones are made per part already (prepare.py), the rest need every part here
-    level, ahead = -1, min((len(r.steps) for r in ready.values()), default=0)
-    while budget > 0 and sum(r.faces(level) for r in ready.values()) > budget:
-        if level + 1 >= ahead:
-            break
-        level += 1
-        report["simplify_tolerance"] = M.SIMPLIFY_STEPS[level]
-    mans = {k: r.manifold(level) for k, r in ready.items()}
-    if level + 1 == ahead and level + 1 < len(M.SIMPLIFY_STEPS):
-        mans, tol = M.simplify_to_budget(mans, budget, M.SIMPLIFY_STEPS[level + 1:],
-                                         fine=M.FINE_STEPS if level < 0 else ())
-        report["simplify_tolerance"] = tol or report["simplify_tolerance"]
-    if cfg.floaters and report["simplify_tolerance"]:
-        mans = {k: M.drop_floaters(m) for k, m in mans.items()}   # simplifying can split
+    # 15 % headroom: carving adds faces after simplifying
+    mans, tol = _within_budget(obj, int(0.85 * cfg.face_budget), cfg.floaters, frozen, prepared)
+    report: dict = {"simplify_tolerance": tol}
     if cfg.carve:
         carved = M.carve_parents(obj, mans)
         for i, sweep in carved.items():
@@ -89,5 +71,72 @@ def refine_meshes(obj: ArticulatedObject, config: Optional[RefineConfig] = None,
     return report
 
 
-__all__ = ["RefineConfig", "LayoutConfig", "arrange_stated", "place_stated_sides",
+def simplify_meshes(obj: ArticulatedObject, face_budget: int, frozen: frozenset = frozenset(),
+                    prepared: Optional[dict] = None) -> dict:
+    """The raw model output within ``face_budget`` visual faces (in place): the refinement's
+    simplification steps and nothing else -- the model's floaters kept (a part keeps at most
+    as many pieces as it had), nothing carved, boxes, joints and collision untouched. A budget is an export setting, not a correction of the
+    model, so ``--no-refine`` output keeps it too. ``prepared`` as for :func:`refine_meshes`
+    (made without dropping floaters)."""
+    t0 = time.perf_counter()
+    mans, tol = _within_budget(obj, face_budget, False, frozen, prepared)
+    if tol:
+        for i, m in mans.items():
+            pieces = len(meshops.edge_pieces(obj.parts[i].mesh)[1])
+            obj.parts[i].mesh = _largest_pieces(meshops.to_trimesh(m), pieces)
+    return {"simplify_tolerance": tol, "faces": int(sum(len(p.mesh.faces) for p in obj.parts
+                                                         if p.mesh is not None)),
+            "seconds": time.perf_counter() - t0}
+
+
+def _largest_pieces(mesh, n: int):
+    """``mesh`` with at most its ``n`` largest edge-connected pieces (by surface): a thin
+    wall that simplification pinches off is the simplification's floater, not the model's.
+    Each piece of a closed mesh is closed, so the result stays closed."""
+    import trimesh
+
+    lab, area = meshops.edge_pieces(mesh)
+    if len(area) <= max(n, 1):
+        return mesh
+    keep = np.zeros(len(area), dtype=bool)
+    keep[np.argsort(-area)[:max(n, 1)]] = True
+    out = trimesh.Trimesh(mesh.vertices, np.asarray(mesh.faces)[keep[lab]], process=False)
+    out.remove_unreferenced_vertices()
+    return out
+
+
+def _within_budget(obj: ArticulatedObject, budget: int, floaters: bool, frozen: frozenset,
+                   prepared: Optional[dict]) -> tuple[dict, float]:
+    """Every part not in ``frozen`` as a Manifold (floaters dropped when ``floaters``),
+    simplified until the object has at most ``budget`` faces (0: as it is); and the last
+    tolerance used (0: none). The first steps come from ``prepared`` (see prepare.py), the
+    rest need every part here."""
+    from . import meshes as M
+    from .prepare import STEPS_AHEAD, prepare_mesh
+
+    ready = {}
+    for k, p in enumerate(obj.parts):
+        if k in frozen or p.mesh is None or not len(p.mesh.faces):
+            continue
+        ready[k] = (prepared or {}).get(k) or prepare_mesh(p.mesh, floaters,
+                                                            STEPS_AHEAD if budget > 0 else 0)
+    tol = 0.0
+    # simplify_to_budget's steps: each taken while the object is over budget
+    level, ahead = -1, min((len(r.steps) for r in ready.values()), default=0)
+    while budget > 0 and sum(r.faces(level) for r in ready.values()) > budget:
+        if level + 1 >= ahead:
+            break
+        level += 1
+        tol = M.SIMPLIFY_STEPS[level]
+    mans = {k: r.manifold(level) for k, r in ready.items()}
+    if budget > 0 and level + 1 == ahead and level + 1 < len(M.SIMPLIFY_STEPS):
+        mans, more = M.simplify_to_budget(mans, budget, M.SIMPLIFY_STEPS[level + 1:],
+                                          fine=M.FINE_STEPS if level < 0 else ())
+        tol = more or tol
+    if floaters and tol:
+        mans = {k: M.drop_floaters(m) for k, m in mans.items()}   # simplifying can split
+    return mans, tol
+
+
+__all__ = ["RefineConfig", "simplify_meshes", "LayoutConfig", "arrange_stated", "place_stated_sides",
            "refine_layout", "refine_meshes", "face_of"]
