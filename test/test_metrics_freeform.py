@@ -42,6 +42,23 @@ def test_set_size_categories_counts_and_spatial_facts():
         assert name in text, name
 
 
+def test_dev_set_reads_and_the_parser_gets_most_of_it():
+    """The spatial dev set (prompts_dev.txt) is well formed and every category's wording is
+    in it; the reader gets at least 68 % of its spatial facts (it was widened on this set;
+    generated objects are scored by `artformer eval --freeform-only`)."""
+    from pathlib import Path
+    dev = read_annotated_prompts(Path(__file__).parents[1] / "model/metrics/prompts_dev.txt")
+    assert len(dev) >= 60 and {e.category for _, e in dev} == set(vocab.CATEGORIES)
+    total = right = 0
+    for p, e in dev:
+        got = parse_prompt(p).spatial
+        for lab, facts in e.spatial.items():
+            for key, want in facts.items():
+                total += 1
+                right += (got.get(lab) or {}).get(key) == want
+    assert total >= 150 and right >= 0.68 * total, (right, total)
+
+
 def test_parser_reads_the_structure_lines():
     """The rule parser agrees with the hand-written structure of nearly every prompt (the
     metric itself scores against the structure lines)."""

@@ -6,7 +6,7 @@ import pytest
 from model.core import ArticulatedObject, Joint, JointType, Part
 from model.metrics.alignment import (GeneratedStructure, alignment_of, check_alignment,
                                      summarise)
-from model.data.prompt_parse import parse_prompt
+from model.data.prompt_parse import ExpectedStructure, parse_prompt
 
 CASES = [
     # (prompt, category, exact counts, lower bounds, joint types)
@@ -55,6 +55,34 @@ def test_parse_free_form(prompt, category, counts, lower, joints):
     assert e.counts == counts
     assert e.min_counts == lower
     assert e.joint_types == joints
+
+
+@pytest.mark.parametrize("prompt,line", [
+    # a grid gives the count when nothing else does; "N columns, M rows"
+    ("low chest of drawers, drawers in a 2x3 grid", "StorageFurniture drawer=6 "
+     "drawer.layout=grid drawer.rows=2 drawer.columns=3"),
+    ("a safe with a keypad of ten buttons: 2 columns, 5 rows", "Safe button=10 "
+     "button.rows=5 button.columns=2 button.layout=grid"),
+    # one on each side / at each end is two; "a drawer above each door" one per door
+    ("a washer with the dial in the middle and a button on each side of it",
+     "WashingMachine button=2 dial=1"),
+    ("a vanity with two doors side by side and a drawer above each door",
+     "StorageFurniture door=2 drawer=2 door.layout=row drawer.above=door"),
+    # right of a part: that part is on the left; a number in an adjective counts nothing
+    ("a cabinet with a door, and two drawers stacked to the right of the door",
+     "StorageFurniture door=1 drawer=2 drawer.layout=column drawer.hpos=right "
+     "door.hpos=left"),
+    ("a gun safe with a three-spoke handle", "Safe handle=1"),
+    # rows without an article; an arrangement is of the plural part named before
+    ("a toaster oven with a column of 6 buttons on the right",
+     "Oven button=6 button.layout=column button.hpos=right"),
+    ("Countertop oven. Two knobs below the door, side by side.",
+     "Oven knob=2 door=1 knob.below=door knob.layout=row"),
+    ("a range with six knobs across the front", "Oven knob=6 knob.layout=row"),
+    ("a hutch with two doors up top", "StorageFurniture door=2 door.vpos=top"),
+])
+def test_parse_spatial_wordings(prompt, line):
+    assert parse_prompt(prompt).to_json() == ExpectedStructure.from_line(line).to_json()
 
 
 def test_shipped_free_form_prompts_all_parse_to_something():

@@ -91,9 +91,15 @@ def test_shipped_model_reads_the_readme_example_with_every_seed(shipped):
 def test_shipped_model_without_stated_counts_or_when_off_decodes_freely(shipped):
     trees, *_ = shipped.decode_trees("a bottle", seed=0)
     assert trees[0].structure is None and trees[0].category == "Bottle"
-    # a count no category can hold: decoded freely, no error
+    # a count beyond what the model was trained on: held at its maximum, no error
+    from model.articulation.structure_control import STRUCTURE_GRAMMAR
+    most = min(STRUCTURE_GRAMMAR["StorageFurniture"]["drawer"][2], shipped.config.max_children)
     trees, *_ = shipped.decode_trees("a cabinet with 99 drawers", seed=0)
-    assert trees[0].structure is None
+    assert trees[0].structure is not None and trees[0].labels.count("drawer") == most
+    # ... so the rest of the prompt is still held: a washer's lid beside seven buttons
+    most = STRUCTURE_GRAMMAR["WashingMachine"]["button"][2]
+    trees, *_ = shipped.decode_trees("a washer with a lid and seven buttons", seed=0)
+    assert trees[0].labels.count("lid") == 1 and trees[0].labels.count("button") == most
     off = dataclasses.replace(shipped.config, prompt_structure=False)
     saved, shipped.config = shipped.config, off
     try:

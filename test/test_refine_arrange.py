@@ -162,3 +162,28 @@ def test_a_door_stated_on_the_left_between_drawer_columns_gets_the_left_band():
     assert all(p.bbox_center[1] - p.bbox_size[1] / 2 >= door_right - 1e-9 for p in obj.parts[2:])
     assert len({round(float(p.bbox_center[1]), 3) for p in obj.parts[2:]}) == 2   # 2 columns
     assert _structure(obj) == before
+
+
+def test_a_door_beside_a_drawer_stack_it_was_decoded_under_gets_the_stacks_height():
+    """Decoded as a door at the bottom and two full-width drawers above it; "two drawers
+    stacked to the right of the door" puts the door on the left at the stack's height (the
+    front's tiling would otherwise grow both back across the whole width)."""
+    obj = ArticulatedObject(category="StorageFurniture", name="bedside", parts=[
+        _part("body_0", "body", -1, (0.5, 1.0, 1.0), (0, 0, 0.5)),
+        _part("door_0", "door", 0, (0.02, 0.95, 0.6), (0.24, 0.0, 0.35),
+              Joint(JointType.REVOLUTE, (0.25, -0.47, 0.35), (0, 0, 1), r_range=(0, 1.6))),
+        _drawer(0, (0.05, 0.0, 0.9), (0.4, 0.95, 0.15)),
+        _drawer(1, (0.05, 0.0, 0.75), (0.4, 0.95, 0.15)),
+    ])
+    before = _structure(obj)
+    _layout(obj, "small bedside cabinet with a door, and two drawers stacked to the right "
+                 "of the door")
+    sp = spatial_summary(obj)
+    assert sp["door"]["hpos"] == ["left"] and sp["drawer"]["hpos"] == ["right"]
+    assert sp["drawer"]["layout"] == "column"
+    door = obj.parts[1]
+    top = max(p.bbox_center[2] + p.bbox_size[2] / 2 for p in obj.parts[2:])
+    bottom = min(p.bbox_center[2] - p.bbox_size[2] / 2 for p in obj.parts[2:])
+    assert door.bbox_center[2] + door.bbox_size[2] / 2 == pytest.approx(top, abs=0.02)
+    assert door.bbox_center[2] - door.bbox_size[2] / 2 == pytest.approx(bottom, abs=0.02)
+    assert _structure(obj) == before

@@ -21,7 +21,9 @@ EXTRA_CATEGORY = {
                          "bathroom cabinet", "display cabinet", "pantry cupboard",
                          "cabinets", "dressers", "kitchen cabinet", "bedside table",
                          "bedside cabinet", "night stand", "tallboy", "chest-of-drawers",
-                         "file cabinet", "drawer unit", "drawer cabinet"),
+                         "file cabinet", "drawer unit", "drawer cabinet", "tv console",
+                         "console table", "vanity", "bathroom vanity", "hutch", "china hutch",
+                         "buffet cabinet", "media cabinet"),
     "Safe": ("safety box", "cash box", "deposit box", "safe deposit box", "gun safe", "wall safe"),
     "Oven": ("toaster oven", "microwave oven", "baking oven", "electric oven", "gas oven"),
     "WashingMachine": ("washer-dryer", "laundry washer", "washing-machine", "washers",
@@ -222,7 +224,20 @@ def _sentences(text: str) -> list[str]:
     text = re.sub(r"\bone another\b", "oneanother", text)
     text = re.sub(r"\(?\b[a-z]+[- ]style\b\)?", " ", text)   # "(knob style)" is a look, not a part
     text = re.sub(r"\s+", " ", text)
+    text = _NUMBER_COMPOUND.sub(_compound, text)
     return [s.strip() for s in re.split(r"[.!?\n]+", text) if s.strip()]
+
+
+_NUMBER_COMPOUND = re.compile(
+    r"\b(\d+|" + "|".join(sorted(vocab.NUMBER_WORDS[1:13], key=len, reverse=True)) + r")-([a-z]+)\b")
+
+
+def _compound(m) -> str:
+    """"a three-drawer dresser" counts drawers; "a three-spoke handle", "a 4-burner range"
+    count no part: that number is part of an adjective, kept as one word."""
+    _, table = _lexicon()
+    kind = table.get(m.group(2), ("WORD",))[0]
+    return m.group(0) if kind == "PART" else f"{m.group(1)}{m.group(2)}"
 
 
 def _motion_in_phrase(phrase: str) -> frozenset | None:

@@ -122,7 +122,9 @@ def _distributive_target(toks: list[_Tok], k: int) -> str | None:
                 if toks[i].kind == "PART" and toks[i].value != toks[k].value:
                     return toks[i].value
             return None
-        if not (toks[j].kind == "WORD" and toks[j].text in ("on", "for", "in", "at", "to", "of")):
+        if not (toks[j].kind == "WORD" and toks[j].text in ("on", "for", "in", "at", "to", "of",
+                                                              "above", "below", "under", "over",
+                                                              "beneath", "underneath", "beside")):
             break
     # before: "each <X> has a <Y>" or "<X>, each with a <Y>"
     for j in range(k - 1, max(-1, k - 8), -1):
@@ -190,11 +192,21 @@ def _read_mentions(toks: list[_Tok], si: int, mentions: list[_Mention],
         own = _motion_in_phrase(t.text)
         if own:
             motion_links.append((own, t.value, False))
+        if _on_both_sides(toks, k) and not m.plural and m.exact in (None, 1) and not m.zero:
+            m.exact, m.lower, m.single, m.dist_head = 2, None, False, True
         dist = _distributive_target(toks, k)
         if dist and dist != t.value and not m.zero and not m.dist_head:
             m.dist_of = dist
         mentions.append(m)
     return prefix_motion_at
+
+
+def _on_both_sides(toks: list[_Tok], k: int) -> bool:
+    """The part at k is followed by "at each end", "on either side", "on both sides": two of
+    it ("a door at each end", "a button on either side of the dial")."""
+    words = [t.text for t in toks[k + 1:k + 4]]
+    return len(words) == 3 and words[0] in ("on", "at") and \
+        words[1] in ("each", "either", "both") and words[2] in ("side", "sides", "end", "ends")
 
 
 def _motion_clauses(toks: list[_Tok], skip: set[int],
@@ -347,6 +359,13 @@ def _tidy(out: ExpectedStructure, text: str) -> None:
         if "rows" in facts and "columns" in facts and "layout" not in facts:
             R, C = facts["rows"], facts["columns"]
             facts["layout"] = "grid" if R > 1 and C > 1 else ("row" if R == 1 else "column")
+    for lab, facts in out.spatial.items():
+        if out.counts.get(lab) == 1 and facts.get("layout") == "row" and "rows" not in facts:
+            del facts["layout"]        # "one drawer across the top": no row of one
+        # "drawers in a 2 x 3 grid": as many as the grid holds, when nothing else counts them
+        if lab not in out.counts and "rows" in facts and "columns" in facts:
+            out.counts[lab] = int(facts["rows"]) * int(facts["columns"])
+            out.min_counts.pop(lab, None)
 
 
 def _relabel(out: ExpectedStructure, a: str, b: str) -> None:

@@ -40,6 +40,8 @@ class _Fact:
     end: int
     mode: str            # "post": the part named before; "pre": the part named next
     relation_to: str | None = None
+    implied: bool = False  # not said of the part but implied ("left of the door": the door
+                           # is on the right); kept only where nothing says otherwise
 
 
 def _rewrite_counts(sentence: str) -> tuple[str, list[_Fact]]:
@@ -126,22 +128,26 @@ _SPATIAL_PATTERNS: list[tuple[str, str, str]] = [
                       r"|one (?:above|on top of|over|below|under) (?:the other|another)"
                       r"|on top of (?:eachother|oneanother)|in a (?:single |vertical )?(?:column|stack)"
                       r"|vertically stacked|in a vertical line)\b", "post"),
-    ("layout=column", r"\ba (?:vertical )?stack of\b", "pre"),
+    ("layout=column", r"\b(?:a |one |single )?(?:vertical )?(?:stack|column|tower) of\b", "pre"),
     ("layout=row", r"\b(?:side[- ]by[- ]side|in (?:a|one) (?:single |horizontal |neat |straight )?(?:row|line)"
                    r"|next to (?:eachother|oneanother)|beside (?:eachother|oneanother)"
-                   r"|in a horizontal line)\b", "post"),
-    ("layout=row", r"\ba (?:horizontal )?row of\b", "pre"),
+                   r"|in a horizontal line|one (?:beside|next to|by) (?:the other|another))\b", "post"),
+    ("layout=row", r"\b(?:a |one |single )?(?:horizontal |neat |straight )?row of\b", "pre"),
     ("layout=grid", r"\bin a grid\b", "post"),
     ("across", rf"\b{_N} across(?:,? (?:and |by |in )?{_N} (?:down|high|deep|tall))?", "post"),
     ("over", rf"\b{_N} over {_N}\b", "post"),
     ("relit", r"\b(above|below|under|underneath|beneath|on top of) (?:it|them)\b", "post"),
     ("vpos+hpos", r"\b(?:on|at|in) the (top|bottom)[- ](left|right)\b", "post"),
-    ("vpos", r"\bacross the (top|bottom)\b", "post"),
+    ("vpos+row", r"\bacross the (top|bottom)\b", "post"),
+    ("layout=row", r"\bacross the (?:front|panel|control panel|face)\b", "post"),
+    ("rows+columns", rf"\b{_N} (rows|columns),? (?:and |by |x |× )?{_N} (?:rows|columns)\b", "post"),
     ("rows", rf"\bin {_N} (?:horizontal )?rows\b", "post"),
     ("columns", rf"\bin {_N} (?:vertical )?columns\b", "post"),
     ("relation", r"\b(above|on top of|below|under|underneath|beneath)\b(?: (?:the|a|an|its|their|both))?", "post"),
-    ("hpos", r"\b(?:on|at|to) the (left|right)(?:[- ]hand)?(?: side| end| half)?\b", "post"),
-    ("vpos", r"\b(?:on|at) the (top|bottom)\b(?! of)|\bon (top)\b(?! of)|\bat the (base)\b", "post"),
+    ("sideof", r"\b(?:to|on|at) the (left|right)(?:[- ]hand)?(?: side)? of\b(?: (?:the|a|an|its|their|both))?", "post"),
+    ("hpos", r"\b(?:the |its )?(left|right)[- ](?:hand )?half (?:is|has|holds|contains|with|:)", "pre"),
+    ("hpos", r"\b(?:on|at|to|in) the (left|right)(?:[- ]hand)?(?: side| end| half)?\b", "post"),
+    ("vpos", r"\b(?:on|at|near) the (top|bottom)\b(?! of)|\b(?:on|up) (top)\b(?! of)|\bat the (base)\b", "post"),
 ]
 _COMPILED = [(k, re.compile(r), m) for k, r, m in _SPATIAL_PATTERNS]
 _ABOVE = {"above", "over", "on top of"}
@@ -158,7 +164,7 @@ def _spatial_facts(sentence: str, toks: list[_Tok]) -> list[_Fact]:
         for m in rx.finditer(work):
             a, b = m.span()
             vals = [v for v in m.groups() if v]
-            if key == "relation":
+            if key in ("relation", "sideof"):
                 part = None
                 for t in [t for t in toks if t.start >= b][:5]:   # "above a row of three buttons"
                     if t.kind == "PART":
@@ -167,7 +173,17 @@ def _spatial_facts(sentence: str, toks: list[_Tok]) -> list[_Fact]:
                     if t.kind not in ("WORD", "NUM", "DET", "MULT") or \
                             (t.text in STOP_WORDS and t.text != "of"):
                         break
-                if part is not None:
+                if key == "sideof":
+                    # "drawers to the right of the door": right of it, and the door on the
+                    # left (a phrase about no part, "left of the panel", is a plain side)
+                    facts.append(_Fact("hpos", [vals[0]], a, b if part is None else part.end,
+                                       "post", None if part is None else part.value))
+                    if part is not None:
+                        other = "left" if vals[0] == "right" else "right"
+                        facts.append(_Fact("hpos", [other], part.start, part.start, "pre",
+                                           implied=True))
+                        b = part.end
+                elif part is not None:
                     rel = "above" if vals[0] in _ABOVE else "below"
                     facts.append(_Fact(rel, [part.value], a, part.end, "post", part.value))
                     b = part.end
@@ -189,6 +205,14 @@ def _spatial_facts(sentence: str, toks: list[_Tok]) -> list[_Fact]:
                 before = [t for t in toks if t.end <= a and t.kind in ("PART", "PUNCT")]
                 mode2 = "post" if before and before[-1].kind == "PART" else "next"
                 facts.append(_Fact("relit", ["above" if vals[0] in _ABOVE else "below"], a, b, mode2))
+            elif key == "rows+columns":
+                first, other = _num(vals[0]), _num(vals[2])
+                R, C = (first, other) if vals[1] == "rows" else (other, first)
+                for k2, v2 in (("rows", R), ("columns", C)):
+                    facts.append(_Fact(k2, [v2], a, b, mode))
+            elif key == "vpos+row":
+                facts.append(_Fact("vpos", [vals[0]], a, b, mode))
+                facts.append(_Fact("layout", ["row"], a, b, mode))
             elif key == "vpos+hpos":
                 facts.append(_Fact("vpos", [vals[0]], a, b, mode))
                 facts.append(_Fact("hpos", [vals[1]], a, b, mode))
@@ -223,7 +247,7 @@ def _attach(facts: list[_Fact], toks: list[_Tok], earlier: list[str],
     labels a hinge or opening fact was said of (they turn on a hinge: revolute)."""
     hinged: list[str] = []
     parts = [t for t in toks if t.kind == "PART"]
-    for f in facts:
+    for f in sorted(facts, key=lambda f: f.implied):     # what is said before what is implied
         allowed = HINGED if f.key in ("hinge", "opens") else \
             ARRANGED if f.key in ("layout", "rows", "columns") else vocab.COUNTABLE_LABELS
         if f.key == "relit":
@@ -253,11 +277,19 @@ def _attach(facts: list[_Fact], toks: list[_Tok], earlier: list[str],
                 break
             if f.mode != "pre" and t.kind == "WORD" and t.text not in SIDE_ADJECTIVES:
                 break   # "... side by side that ..." is not a pre-modifier
-        if f.mode == "pre" and target is None:
-            target = next((t.value for t in nxt if t.kind == "PART" and t.value in allowed), None)
+        if f.mode == "pre" and target is None:      # "a stack of 3 drawers", up to a comma
+            for t in [t for t in toks if t.start >= f.end][:6]:
+                if t.kind == "PUNCT":
+                    break
+                if t.kind == "PART" and t.value in allowed:
+                    target = t.value
+                    break
         if target is None:
-            before = [t.value for t in parts if t.end <= f.start and t.value in allowed]
-            target = before[-1] if before else None
+            before = [t for t in parts if t.end <= f.start and t.value in allowed]
+            if f.key in ("layout", "rows", "columns"):
+                # an arrangement is of several parts: "two knobs below the door, side by side"
+                before = [t for t in before if t.plural] or before
+            target = before[-1].value if before else None
         if target is None:
             prev = [lab for lab in earlier if lab in allowed]
             target = prev[-1] if prev else None
@@ -276,6 +308,8 @@ def _attach(facts: list[_Fact], toks: list[_Tok], earlier: list[str],
                 f = _Fact("vpos", ["top" if f.values[0] == "above" else "bottom"], f.start,
                           f.end, f.mode)
         facts_of = spatial.setdefault(target, {})
+        if f.implied and f.key in facts_of:
+            continue
         if f.key in ("hinge", "opens"):
             hinged.append(target)
         if f.key in ("layout", "rows", "columns"):

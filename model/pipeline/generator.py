@@ -27,6 +27,7 @@ from model.core.runtime import keep_heap_mapped, torch_threads
 from model.pipeline.api import (ExportResult, GeneratedObject, GenerationConfig,
                                 GenerationError)
 from model.pipeline.part_pool import PartPool, default_workers
+from model.pipeline.prompt_structure import spatial_for
 # checkpoint discovery and request checks, re-exported from their modules
 from model.pipeline.checkpoints import (STAGES, WEIGHTS_DIR, check_codebooks,  # noqa: F401
                                         file_digest, find_checkpoints)
@@ -216,7 +217,8 @@ class Generator:
         held = None if spec is None else parse_structure(spec).to_dict()
         for tree in trees:
             tree.structure = held
-            tree.spatial = stated.spatial if stated is not None and stated.spatial else None
+            tree.spatial = spatial_for(stated.spatial, tree.category) if stated is not None \
+                else None
         return trees, prompt, modality, timings
 
     def _stated_structure(self, expected, cond, mask, seed: int):

@@ -36,7 +36,7 @@ def stated_counts(expected) -> bool:
 
 
 def structure_for(expected, category: str, labels: Iterable[str],
-                  open_counts: Optional[dict] = None) -> Optional[dict]:
+                  open_counts: Optional[dict] = None, clamp: int = 0) -> Optional[dict]:
     """A parsed prompt -> the structure dict (``model.core.structure.parse_structure`` form)
     that holds one category's decoding to what the prompt states, or None when the prompt
     names a part this category does not have.
@@ -47,7 +47,8 @@ def structure_for(expected, category: str, labels: Iterable[str],
     part label of the category is left to the network: its count in ``open_counts`` (what
     the network's own decoding of the prompt made, within the label's training maximum; at
     least a stated lower bound such as "drawers"), or ``"auto"`` without it. Handles stay
-    ``"auto"``: they follow their doors and drawers.
+    ``"auto"``: they follow their doors and drawers. ``clamp`` (> 0): stated counts above a
+    label's training maximum, or above ``clamp``, are held at the smaller of the two.
     """
     from model.articulation.structure_control import (HINGED_LABELS, STRUCTURE_EXCLUSIVE,
                                                       STRUCTURE_GRAMMAR)
@@ -58,7 +59,7 @@ def structure_for(expected, category: str, labels: Iterable[str],
     rename = CATEGORY_SYNONYMS.get(category, {})
 
     def own(lab: str) -> str:
-        return rename[lab] if lab not in have and rename.get(lab) in have else lab
+        return _own_label(category, lab, have)
 
     out: dict = {"category": category}
     out.update({lab: "auto" for lab in sorted(have - {"body"})})
@@ -76,6 +77,8 @@ def structure_for(expected, category: str, labels: Iterable[str],
             if n == 0:
                 continue
             return None
+        if clamp:
+            n = counts[lab] = min(n, int(grammar[lab][2]), clamp)
         req: dict = {"count": n}
         joints = expected.joint_types.get(lab) or expected.joint_types.get(
             next((k for k, v in rename.items() if v == lab), ""), [])
@@ -93,6 +96,32 @@ def structure_for(expected, category: str, labels: Iterable[str],
         hosts = grammar[lab][0] if lab in have else ()
         if n > 0 and len(hosts) == 1 and hosts[0] != "body" and out.get(hosts[0]) == "auto":
             out[hosts[0]] = {"count": max(1, int(expected.min_counts.get(hosts[0], 1)))}
+    return out
+
+
+def _own_label(category: str, lab: str, have) -> str:
+    """A person's word for a part (``lab``) as ``category`` calls it (CATEGORY_SYNONYMS),
+    where the category has no part of that name (``have``: the labels it has)."""
+    other = CATEGORY_SYNONYMS.get(category, {}).get(lab)
+    return other if lab not in have and other in have else lab
+
+
+def spatial_for(spatial: Optional[dict], category: str) -> Optional[dict]:
+    """A parsed prompt's spatial facts (label -> facts) in ``category``'s part names, as
+    :func:`structure_for` names its counts: "a knob on the right" of a washer is about its
+    dial. None when there are none."""
+    from model.articulation.structure_control import STRUCTURE_GRAMMAR
+
+    if not spatial:
+        return None
+    have = set(STRUCTURE_GRAMMAR.get(category, ()))
+    out: dict = {}
+    for lab, facts in spatial.items():
+        mine = dict(facts)
+        for key in ("above", "below"):
+            if key in mine:
+                mine[key] = sorted({_own_label(category, o, have) for o in mine[key]})
+        out.setdefault(_own_label(category, lab, have), {}).update(mine)
     return out
 
 
@@ -128,21 +157,29 @@ def resolve_prompt_structure(decoder, expected, categories: list[str], *, max_no
     for cat, lab in zip(decoder.table_categories, decoder.table_labels):
         labels_of.setdefault(cat, set()).add(lab)
     why = []
-    for cat in categories:
-        tries = [None]
-        if own_reading is not None and own_reading.category == cat:
-            tries.insert(0, Counter(own_reading.labels))
-        for open_counts in tries:
-            spec = structure_for(expected, cat, labels_of.get(cat, ()), open_counts)
-            if spec is None:
-                why.append(f"{cat}: a stated part is not one of its parts")
-                break
-            try:
-                plan = decoder.resolve_structure(spec, max_nodes=max_nodes,
-                                                 max_children=max_children)
-            except ValueError as e:
-                why.append(f"{cat}: {e}")
-                continue
-            return spec, plan
+    # as stated first; then with counts beyond what the model was trained on held at its
+    # maximum ("seven buttons" on a washer that had at most five), so that the rest of the
+    # prompt (its lid, the hinge side) is still held
+    for clamp in (0, max_children):
+        for cat in categories:
+            tries = [None]
+            if own_reading is not None and own_reading.category == cat:
+                tries.insert(0, Counter(own_reading.labels))
+            for open_counts in tries:
+                spec = structure_for(expected, cat, labels_of.get(cat, ()), open_counts,
+                                     clamp)
+                if spec is None:
+                    why.append(f"{cat}: a stated part is not one of its parts")
+                    break
+                try:
+                    plan = decoder.resolve_structure(spec, max_nodes=max_nodes,
+                                                     max_children=max_children)
+                except ValueError as e:
+                    why.append(f"{cat}: {e}")
+                    continue
+                if clamp:
+                    log.warning("the prompt asks for more parts than the model makes (%s); "
+                                "holding %s", "; ".join(dict.fromkeys(why)), spec)
+                return spec, plan
     log.info("the prompt's stated parts are not held (%s); decoding freely", "; ".join(why))
     return None, None

@@ -11,7 +11,9 @@ guess, and for groups of 6-12 parts it is rarely the stated grid.
   bottom against the other drawers, trays, doors and lids on the face) or on one side of
   the others (``hpos`` left / right) that are not get an upper and a lower (or a left and a
   right) band of the span they cover, each group mapped into its band with its own layout.
-  The refinement then attaches, aligns and separates as usual.
+  A group stated on one side or in the middle that no other group was banded against
+  ("a dial on the right") is moved there on the body, within its parent's face. The
+  refinement then attaches, aligns and separates as usual.
 * :func:`place_stated_sides`, after it — a side (``hpos`` left / right): a group wholly on
   the other side of its face has the face's layout mirrored left to right (every sibling on
   that face, with its children and joints), so the rest of the front keeps its arrangement.
@@ -49,11 +51,55 @@ def arrange_stated(obj: ArticulatedObject, spatial: Optional[dict]) -> list[str]
         if group is not None and _lay_out(obj, group, grid):
             done.append(f"{label}: {len(grid)} x {max(grid)}")
     for label, facts in (spatial or {}).items():
+        banded = set()
         for low, high, ax in _stated_bands(obj, label, facts):
+            banded.add(ax)
             if _bands(obj, low, high, ax):
                 a, b = obj.parts[high[0]].label, obj.parts[low[0]].label
                 done.append(f"{a} above {b}" if ax == V else f"{b} left of {a}")
+        for key, ax in (("hpos", H), ("vpos", V)):
+            want = facts.get(key) or []
+            if ax not in banded and len(want) == 1 and _to_place(obj, label, ax, want[0]):
+                done.append(f"{label} to the {want[0]}")
     return done
+
+
+PLACE_AT = 0.6     # where a group stated on one side goes: its centre this many half-widths
+                   # (half-heights) of the body from the body's centre (the summary's
+                   # left / right starts at model.data.spatial.HPOS_MARGIN = 0.2)
+
+
+def _to_place(obj: ArticulatedObject, label: str, ax: int, where: str) -> bool:
+    """A group stated on one side or in the middle of the object ("a dial on the right",
+    "three drawers in the middle", "buttons at the top") that no other group was banded
+    against: moved along ``ax`` to that place on the body, within its parent's face, unless
+    it is there already. Not up or down where a panel on the face turns about a horizontal
+    axis (an oven's drop-down door stays at the bottom)."""
+    from model.data.spatial import HPOS_MARGIN, body_box
+
+    group = _front_group(obj, label, every=False)
+    sides = SIDES[ax] + ("middle",)
+    if group is None or where not in sides:
+        return False
+    if ax == V and any(_turns_horizontally(obj, c) for c in obj.children(obj.parts[group[0]].parent)):
+        return False
+    bc, bs = body_box(obj)
+    half = float(bs[ax]) / 2
+    glo, ghi = _cspan(obj, group, ax)
+    u = ((glo + ghi) / 2 - float(bc[ax])) / half
+    sign = {"middle": 0.0, "left": -1.0, "bottom": -1.0, "right": 1.0, "top": 1.0}[where]
+    if (sign == 0 and abs(u) <= HPOS_MARGIN) or (sign != 0 and sign * u > HPOS_MARGIN):
+        return False                                      # already there
+    plo, phi = _cspan(obj, [obj.parts[group[0]].parent], ax)
+    d = float(bc[ax]) + sign * PLACE_AT * half - (glo + ghi) / 2
+    d = min(max(d, plo - glo), phi - ghi)                 # stays on its parent's face
+    if abs(d) < 1e-6:
+        return False
+    for i in group:
+        centre = obj.parts[i].bbox_center.copy()
+        centre[ax] += d
+        _place(obj, i, centre, obj.parts[i].bbox_size.copy())
+    return True
 
 
 def _stated_bands(obj: ArticulatedObject, label: str, facts: dict) -> list[tuple]:
@@ -89,25 +135,39 @@ def _bands(obj: ArticulatedObject, low: list[int], high: list[int], ax: int) -> 
     """Unless ``low`` already sits wholly below (V) or left of (H) ``high``: the span both
     groups cover along ``ax`` is split into a low and a high band as long as each group's
     own span (scaled to fill it), and each group is mapped into its band with its own
-    layout (relative places and sizes) kept. Not top to bottom on a face where a panel turns
+    layout (relative places and sizes) kept; groups of panels (drawers, doors...) are also
+    stretched across the extent both cover on the other axis. Not top to bottom on a face where a panel turns
     about a horizontal axis (an oven's drop-down door stays at the bottom)."""
-    def span(g):
-        lo, hi = zip(*(_lohi(obj.parts[i]) for i in g))
-        return float(np.min(np.array(lo)[:, ax])), float(np.max(np.array(hi)[:, ax]))
-
-    (alo, ahi), (blo, bhi) = span(low), span(high)
+    (alo, ahi), (blo, bhi) = _cspan(obj, low, ax), _cspan(obj, high, ax)
     if ahi < blo + 0.01 or (ax == V and any(_turns_horizontally(obj, i) for i in low + high)):
         return False
     lo, hi = min(alo, blo), max(ahi, bhi)
     scale = (hi - lo) / max((ahi - alo) + (bhi - blo), 1e-9)
+    cross = V if ax == H else H
+    # panels side by side share the other extent too: a door left of a stack of drawers is
+    # as tall as the stack (else tiling the front grows each across the other's band)
+    panels = all(obj.parts[i].label in BANDED for i in low + high)
+    (c1, d1), (c2, d2) = _cspan(obj, low, cross), _cspan(obj, high, cross)
+    clo, chi = min(c1, c2), max(d1, d2)
     for g, glo, base in ((low, alo, lo), (high, blo, hi - (bhi - blo) * scale)):
+        glo2, ghi2 = _cspan(obj, g, cross)
+        cscale = (chi - clo) / max(ghi2 - glo2, 1e-9)
         for i in g:
             p = obj.parts[i]
             centre, size = p.bbox_center.copy(), p.bbox_size.copy()
             centre[ax] = base + (centre[ax] - glo) * scale
             size[ax] *= scale
+            if panels:
+                centre[cross] = clo + (centre[cross] - glo2) * cscale
+                size[cross] *= cscale
             _place(obj, i, centre, size)
     return True
+
+
+def _cspan(obj: ArticulatedObject, group: list[int], ax: int) -> tuple[float, float]:
+    """The extent ``group`` covers along ``ax``."""
+    lo, hi = zip(*(_lohi(obj.parts[i]) for i in group))
+    return float(np.min(np.array(lo)[:, ax])), float(np.max(np.array(hi)[:, ax]))
 
 
 def _turns_horizontally(obj: ArticulatedObject, i: int) -> bool:
