@@ -80,6 +80,9 @@ def test_parse_free_form(prompt, category, counts, lower, joints):
      "Oven knob=2 door=1 knob.below=door knob.layout=row"),
     ("a range with six knobs across the front", "Oven knob=6 knob.layout=row"),
     ("a hutch with two doors up top", "StorageFurniture door=2 door.vpos=top"),
+    # a place said of a control panel is its controls' place, not the part named before
+    ("a washer, door at the bottom, control panel at the top with two dials and six buttons",
+     "WashingMachine door=1 dial=2 button=6 door.vpos=bottom dial.vpos=top button.vpos=top"),
 ])
 def test_parse_spatial_wordings(prompt, line):
     assert parse_prompt(prompt).to_json() == ExpectedStructure.from_line(line).to_json()

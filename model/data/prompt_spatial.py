@@ -42,6 +42,7 @@ class _Fact:
     relation_to: str | None = None
     implied: bool = False  # not said of the part but implied ("left of the door": the door
                            # is on the right); kept only where nothing says otherwise
+    panel: bool = False    # said of a control panel: about the controls named with it
 
 
 def _rewrite_counts(sentence: str) -> tuple[str, list[_Fact]]:
@@ -238,7 +239,15 @@ def _spatial_facts(sentence: str, toks: list[_Tok]) -> list[_Fact]:
                                                    and nxt[1].kind == "PART")):
                 key, val = _PRE_SIDE[t.text]
                 facts.append(_Fact(key, [val], t.start, t.end, "pre"))
+    for f in facts:
+        if f.key in ("hpos", "vpos") and f.mode == "post" and _PANEL.search(sentence[:f.start]):
+            f.panel = True
     return facts
+
+
+# "a control panel at the top with two dials": the place is the panel's, so its controls'
+_PANEL = re.compile(r"\b(?:control )?(?:panel|console|fascia|backsplash)\s*$")
+CONTROLS = ("knob", "dial", "button")
 
 
 def _attach(facts: list[_Fact], toks: list[_Tok], earlier: list[str],
@@ -264,6 +273,14 @@ def _attach(facts: list[_Fact], toks: list[_Tok], earlier: list[str],
             if subj is not None and objs:
                 d = spatial.setdefault(subj, {})
                 d[f.values[0]] = sorted(set(d.get(f.values[0], [])) | {objs[-1]})
+            continue
+        if f.panel:
+            # the controls named after the panel in this sentence, else those before it
+            after = [t.value for t in parts if t.start >= f.end and t.value in CONTROLS]
+            before = [t.value for t in parts if t.end <= f.start and t.value in CONTROLS]
+            for lab in dict.fromkeys(after or before):
+                facts_of = spatial.setdefault(lab, {})
+                facts_of[f.key] = sorted(set(facts_of.get(f.key, [])) | set(f.values))
             continue
         target = None
         # a phrase right before a part noun (adjectives between) is about that part:
