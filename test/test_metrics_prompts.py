@@ -80,6 +80,20 @@ def test_parse_free_form(prompt, category, counts, lower, joints):
      "Oven knob=2 door=1 knob.below=door knob.layout=row"),
     ("a range with six knobs across the front", "Oven knob=6 knob.layout=row"),
     ("a hutch with two doors up top", "StorageFurniture door=2 door.vpos=top"),
+    # grids said as width and height, bare "3 by 3", stacks, "N rows with M per row"
+    ("apothecary cabinet w/ 12 tiny drawers, 4 wide x 3 tall", "StorageFurniture drawer=12 "
+     "drawer.layout=grid drawer.rows=3 drawer.columns=4"),
+    ("a locker unit with 12 doors, four tall and three wide", "StorageFurniture door=12 "
+     "door.layout=grid door.rows=4 door.columns=3"),
+    ("medicine cabinet w/ 9 drawers arranged 3 by 3", "StorageFurniture drawer=9 "
+     "drawer.layout=grid drawer.rows=3 drawer.columns=3"),
+    ("two stacks of five drawers in a low cabinet", "StorageFurniture drawer=10 "
+     "drawer.layout=grid drawer.rows=5 drawer.columns=2"),
+    ("a cabinet, 3 rows with 3 drawers per row", "StorageFurniture drawer=9 "
+     "drawer.layout=grid drawer.rows=3 drawer.columns=3"),
+    ("a safe with a phone-style number pad", "Safe button=12 button.layout=grid "
+     "button.rows=4 button.columns=3"),
+    ("a cabinet 60 x 40 cm with two drawers", "StorageFurniture drawer=2"),
     # a place said of a control panel is its controls' place, not the part named before
     ("a washer, door at the bottom, control panel at the top with two dials and six buttons",
      "WashingMachine door=1 dial=2 button=6 door.vpos=bottom dial.vpos=top button.vpos=top"),

@@ -23,7 +23,9 @@ EXTRA_CATEGORY = {
                          "bedside cabinet", "night stand", "tallboy", "chest-of-drawers",
                          "file cabinet", "drawer unit", "drawer cabinet", "tv console",
                          "console table", "vanity", "bathroom vanity", "hutch", "china hutch",
-                         "buffet cabinet", "media cabinet"),
+                         "buffet cabinet", "media cabinet", "card catalog", "card catalogue",
+                         "cubby unit", "apothecary cabinet", "spice cabinet", "tool chest",
+                         "medicine cabinet", "flat file cabinet", "plan chest"),
     "Safe": ("safety box", "cash box", "deposit box", "safe deposit box", "gun safe", "wall safe"),
     "Oven": ("toaster oven", "microwave oven", "baking oven", "electric oven", "gas oven"),
     "WashingMachine": ("washer-dryer", "laundry washer", "washing-machine", "washers",
@@ -222,6 +224,8 @@ def _sentences(text: str) -> list[str]:
     text = re.sub(r"\beach other\b", "eachother", text)
     text = re.sub(r"\b([a-z]+)-like\b", " ", text)          # "a knob-like dial" is a dial
     text = re.sub(r"\bone another\b", "oneanother", text)
+    # a telephone's keypad: three keys wide, four rows
+    text = re.sub(r"\b(?:tele)?phone[- ]style (?:number ?pad|numpad|keypad)s?\b", "4 x 3 keypad", text)
     text = re.sub(r"\(?\b[a-z]+[- ]style\b\)?", " ", text)   # "(knob style)" is a look, not a part
     text = re.sub(r"\s+", " ", text)
     text = _NUMBER_COMPOUND.sub(_compound, text)

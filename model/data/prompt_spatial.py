@@ -49,15 +49,17 @@ def _rewrite_counts(sentence: str) -> tuple[str, list[_Fact]]:
     """Rewrite grid wordings that carry a count ("two rows of three drawers" -> "6 drawers",
     "a 3 x 3 keypad" -> "9 keypad buttons") and return the arrangement facts they state."""
     facts: list[_Fact] = []
-
-    def grid(m, rows: int, cols: int, tail: str) -> str:
-        return f"{rows * cols} {tail}".rstrip() + " "
+    # "three rows with three drawers per row" is "three rows of three drawers"
+    sentence = re.sub(rf"\b{_N} (rows|columns|stacks) (?:with|containing|holding|of) {_N} "
+                      rf"([a-z]+) (?:per|in each|each|a) (?:row|column|stack)\b",
+                      r"\1 \2 of \3 \4", sentence)
 
     out, pos = [], 0
     pat = re.compile(
         rf"\b(?:in |into |as )?(?:a |an )?{_N}\s?(?:x|×|by)\s?{_N}\s(grid|array|keypad|matrix|layout)(\s+of\b)?"
-        rf"|\b{_N} (rows|columns) of {_N}\b(\s+(?=\w))?"
-        rf"|\b(?:a |an |the |its |their |two |both )?keypads?(?!\s+(?:buttons?|keys))( of\b)?")
+        rf"|\b{_N} (rows|columns|stacks) of {_N}\b(\s+(?=\w))?"
+        rf"|\b(?:a |an |the |its |their |two |both )?(?:keypads?|number ?pads?|numpads?)"
+        rf"(?!\s+(?:buttons?|keys))( of\b)?")
     for m in pat.finditer(sentence):
         out.append(sentence[pos:m.start()])
         here = sum(len(x) for x in out)
@@ -80,7 +82,7 @@ def _rewrite_counts(sentence: str) -> tuple[str, list[_Fact]]:
             out.append(text + (" " if mode == "pre" and not text.endswith("buttons") else ""))
         elif g[4] is not None:               # N rows of M (drawers)
             a, b = _num(g[4]), _num(g[6])
-            R, C = (a, b) if g[5] == "rows" else (b, a)
+            R, C = (a, b) if g[5] == "rows" else (b, a)      # columns and stacks of M
             followed = g[7] is not None and _part_follows(sentence[m.end():])
             if followed:
                 text = f"{R * C} "
@@ -127,7 +129,7 @@ _SPATIAL_PATTERNS: list[tuple[str, str, str]] = [
     ("opens=sideways+hinge=side", r"\bside[- ](?:opening|hinged)\b", "pre"),
     ("layout=column", r"\b(?:stacked(?: vertically| up)?(?: one (?:above|on top of|over) (?:the other|another))?"
                       r"|one (?:above|on top of|over|below|under) (?:the other|another)"
-                      r"|on top of (?:eachother|oneanother)|in a (?:single |vertical )?(?:column|stack)"
+                      r"|on top of (?:eachother|oneanother)|in (?:a|one) (?:single |vertical |tall )*(?:column|stack)"
                       r"|vertically stacked|in a vertical line)\b", "post"),
     ("layout=column", r"\b(?:a |one |single )?(?:vertical )?(?:stack|column|tower) of\b", "pre"),
     ("layout=row", r"\b(?:side[- ]by[- ]side|in (?:a|one) (?:single |horizontal |neat |straight )?(?:row|line)"
@@ -135,7 +137,10 @@ _SPATIAL_PATTERNS: list[tuple[str, str, str]] = [
                    r"|in a horizontal line|one (?:beside|next to|by) (?:the other|another))\b", "post"),
     ("layout=row", r"\b(?:a |one |single )?(?:horizontal |neat |straight )?row of\b", "pre"),
     ("layout=grid", r"\bin a grid\b", "post"),
-    ("across", rf"\b{_N} across(?:,? (?:and |by |in )?{_N} (?:down|high|deep|tall))?", "post"),
+    ("down-across", rf"\b{_N} (?:tall|high|down),? (?:and |by |x |× )?{_N} (?:wide|across)\b", "post"),
+    ("across", rf"\b{_N} (?:across|wide)(?:,? (?:and |by |in |x |× )?{_N} (?:down|high|deep|tall))?", "post"),
+    ("grid-bare", rf"\b(?:arranged |laid out |set out )?(?:in )?{_N}\s?(?:x|×|by)\s?{_N}\b"
+                  rf"(?!\s?(?:cm|mm|m|in|inch|inches|ft|feet|foot|meters?|metres?|centimet\w*|\"|'))", "post"),
     ("over", rf"\b{_N} over {_N}\b", "post"),
     ("relit", r"\b(above|below|under|underneath|beneath|on top of) (?:it|them)\b", "post"),
     ("vpos+hpos", r"\b(?:on|at|in) the (top|bottom)[- ](left|right)\b", "post"),
@@ -195,6 +200,12 @@ def _spatial_facts(sentence: str, toks: list[_Tok]) -> list[_Fact]:
                 facts.append(_Fact("columns", [_num(vals[0])], a, b, mode))
                 if len(vals) > 1:
                     facts.append(_Fact("rows", [_num(vals[1])], a, b, mode))
+            elif key == "down-across":
+                facts.append(_Fact("rows", [_num(vals[0])], a, b, mode))
+                facts.append(_Fact("columns", [_num(vals[1])], a, b, mode))
+            elif key == "grid-bare":              # "nine drawers arranged 3 by 3"
+                for k2, v2 in (("rows", _num(vals[0])), ("columns", _num(vals[1]))):
+                    facts.append(_Fact(k2, [v2], a, b, mode))
             elif key == "over":
                 if _num(vals[0]) == _num(vals[1]):
                     for k2, v2 in (("layout", "grid" if _num(vals[0]) > 1 else "column"),
