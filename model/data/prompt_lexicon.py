@@ -225,7 +225,8 @@ def _sentences(text: str) -> list[str]:
     text = re.sub(r"\b([a-z]+)-like\b", " ", text)          # "a knob-like dial" is a dial
     text = re.sub(r"\bone another\b", "oneanother", text)
     # a telephone's keypad: three keys wide, four rows
-    text = re.sub(r"\b(?:tele)?phone[- ]style (?:number ?pad|numpad|keypad)s?\b", "4 x 3 keypad", text)
+    text = re.sub(r"\b(?:tele)?phone[- ]style (?:number ?pad|numpad|keypad)s?\b", "4 x 3 keypad",
+                  text)
     text = re.sub(r"\(?\b[a-z]+[- ]style\b\)?", " ", text)   # "(knob style)" is a look, not a part
     text = re.sub(r"\s+", " ", text)
     text = _NUMBER_COMPOUND.sub(_compound, text)
@@ -233,7 +234,8 @@ def _sentences(text: str) -> list[str]:
 
 
 _NUMBER_COMPOUND = re.compile(
-    r"\b(\d+|" + "|".join(sorted(vocab.NUMBER_WORDS[1:13], key=len, reverse=True)) + r")-([a-z]+)\b")
+    r"\b(\d+|" + "|".join(sorted(vocab.NUMBER_WORDS[1:13], key=len, reverse=True))
+    + r")-([a-z]+)\b")
 
 
 def _compound(m) -> str:

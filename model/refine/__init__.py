@@ -75,9 +75,10 @@ def simplify_meshes(obj: ArticulatedObject, face_budget: int, frozen: frozenset 
                     prepared: Optional[dict] = None) -> dict:
     """The raw model output within ``face_budget`` visual faces (in place): the refinement's
     simplification steps and nothing else -- the model's floaters kept (a part keeps at most
-    as many pieces as it had), nothing carved, boxes, joints and collision untouched. A budget is an export setting, not a correction of the
-    model, so ``--no-refine`` output keeps it too. ``prepared`` as for :func:`refine_meshes`
-    (made without dropping floaters)."""
+    as many pieces as it had), nothing carved, boxes, joints and collision untouched. A
+    budget is an export setting, not a correction of the model, so ``--no-refine`` output
+    keeps it too. ``prepared`` as for :func:`refine_meshes` (made without dropping
+    floaters)."""
     t0 = time.perf_counter()
     mans, tol = _within_budget(obj, face_budget, False, frozen, prepared)
     if tol:
@@ -138,5 +139,5 @@ def _within_budget(obj: ArticulatedObject, budget: int, floaters: bool, frozen: 
     return mans, tol
 
 
-__all__ = ["RefineConfig", "simplify_meshes", "LayoutConfig", "arrange_stated", "place_stated_sides",
-           "refine_layout", "refine_meshes", "face_of"]
+__all__ = ["RefineConfig", "simplify_meshes", "LayoutConfig", "arrange_stated",
+           "place_stated_sides", "refine_layout", "refine_meshes", "face_of"]

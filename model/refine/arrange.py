@@ -75,22 +75,23 @@ def _to_place(obj: ArticulatedObject, label: str, ax: int, where: str) -> bool:
     against: moved along ``ax`` to that place on the body, within its parent's face, unless
     it is there already. Not up or down where a panel on the face turns about a horizontal
     axis (an oven's drop-down door stays at the bottom)."""
-    from model.data.spatial import HPOS_MARGIN, body_box
+    from model.data.spatial import HPOS_MARGIN, VPOS_MARGIN, body_box
 
     group = _front_group(obj, label, every=False)
-    sides = SIDES[ax] + ("middle",)
-    if group is None or where not in sides:
+    if group is None or where not in SIDES[ax] + ("middle",):
         return False
-    if ax == V and any(_turns_horizontally(obj, c) for c in obj.children(obj.parts[group[0]].parent)):
+    parent = obj.parts[group[0]].parent
+    if ax == V and any(_turns_horizontally(obj, c) for c in obj.children(parent)):
         return False
+    margin = HPOS_MARGIN if ax == H else VPOS_MARGIN
     bc, bs = body_box(obj)
     half = float(bs[ax]) / 2
     glo, ghi = _cspan(obj, group, ax)
     u = ((glo + ghi) / 2 - float(bc[ax])) / half
     sign = {"middle": 0.0, "left": -1.0, "bottom": -1.0, "right": 1.0, "top": 1.0}[where]
-    if (sign == 0 and abs(u) <= HPOS_MARGIN) or (sign != 0 and sign * u > HPOS_MARGIN):
+    if (sign == 0 and abs(u) <= margin) or (sign != 0 and sign * u > margin):
         return False                                      # already there
-    plo, phi = _cspan(obj, [obj.parts[group[0]].parent], ax)
+    plo, phi = _cspan(obj, [parent], ax)
     d = float(bc[ax]) + sign * PLACE_AT * half - (glo + ghi) / 2
     d = min(max(d, plo - glo), phi - ghi)                 # stays on its parent's face
     if abs(d) < 1e-6:
@@ -136,8 +137,9 @@ def _bands(obj: ArticulatedObject, low: list[int], high: list[int], ax: int) -> 
     groups cover along ``ax`` is split into a low and a high band as long as each group's
     own span (scaled to fill it), and each group is mapped into its band with its own
     layout (relative places and sizes) kept; groups of panels (drawers, doors...) are also
-    stretched across the extent both cover on the other axis. Not top to bottom on a face where a panel turns
-    about a horizontal axis (an oven's drop-down door stays at the bottom)."""
+    stretched across the extent both cover on the other axis. Not top to bottom on a face
+    where a panel turns about a horizontal axis (an oven's drop-down door stays at the
+    bottom)."""
     (alo, ahi), (blo, bhi) = _cspan(obj, low, ax), _cspan(obj, high, ax)
     if ahi < blo + 0.01 or (ax == V and any(_turns_horizontally(obj, i) for i in low + high)):
         return False
