@@ -134,7 +134,7 @@ def test_raw_output_gets_the_face_budget_and_nothing_else():
 
 def test_raw_simplification_adds_no_pieces():
     # a thin wall pinched off by simplifying is dropped; the model's own pieces are kept
-    from model.refine import _largest_pieces
+    from model.refine.meshes import largest_pieces as _largest_pieces
 
     wall = trimesh.creation.box(extents=(0.3, 0.3, 0.3))
     sliver = trimesh.creation.box(extents=(0.01, 0.01, 0.01)).apply_translation((1, 0, 0))

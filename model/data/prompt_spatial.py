@@ -200,10 +200,7 @@ def _spatial_facts(sentence: str, toks: list[_Tok]) -> list[_Fact]:
                 facts.append(_Fact("columns", [_num(vals[0])], a, b, mode))
                 if len(vals) > 1:
                     facts.append(_Fact("rows", [_num(vals[1])], a, b, mode))
-            elif key == "down-across":
-                facts.append(_Fact("rows", [_num(vals[0])], a, b, mode))
-                facts.append(_Fact("columns", [_num(vals[1])], a, b, mode))
-            elif key == "grid-bare":              # "nine drawers arranged 3 by 3"
+            elif key in ("down-across", "grid-bare"):   # "3 tall, 4 wide", "arranged 3 by 3"
                 for k2, v2 in (("rows", _num(vals[0])), ("columns", _num(vals[1]))):
                     facts.append(_Fact(k2, [v2], a, b, mode))
             elif key == "over":
@@ -282,16 +279,14 @@ def _attach(facts: list[_Fact], toks: list[_Tok], earlier: list[str],
                 subj = after[0] if after else None
                 objs = [v for v in before if v != subj] or [v for v in earlier if v != subj]
             if subj is not None and objs:
-                d = spatial.setdefault(subj, {})
-                d[f.values[0]] = sorted(set(d.get(f.values[0], [])) | {objs[-1]})
+                _merge(spatial.setdefault(subj, {}), f.values[0], [objs[-1]])
             continue
         if f.panel:
             # the controls named after the panel in this sentence, else those before it
             after = [t.value for t in parts if t.start >= f.end and t.value in CONTROLS]
             before = [t.value for t in parts if t.end <= f.start and t.value in CONTROLS]
             for lab in dict.fromkeys(after or before):
-                facts_of = spatial.setdefault(lab, {})
-                facts_of[f.key] = sorted(set(facts_of.get(f.key, [])) | set(f.values))
+                _merge(spatial.setdefault(lab, {}), f.key, f.values)
             continue
         target = None
         # a phrase right before a part noun (adjectives between) is about that part:
@@ -343,5 +338,10 @@ def _attach(facts: list[_Fact], toks: list[_Tok], earlier: list[str],
         if f.key in ("layout", "rows", "columns"):
             facts_of[f.key] = f.values[0]
         else:
-            facts_of[f.key] = sorted(set(facts_of.get(f.key, [])) | set(f.values))
+            _merge(facts_of, f.key, f.values)
     return hinged
+
+
+def _merge(facts_of: dict, key: str, values) -> None:
+    """Add ``values`` to a part's set-valued fact ``key`` (sides, relations)."""
+    facts_of[key] = sorted(set(facts_of.get(key, [])) | set(values))

@@ -79,31 +79,17 @@ def simplify_meshes(obj: ArticulatedObject, face_budget: int, frozen: frozenset 
     budget is an export setting, not a correction of the model, so ``--no-refine`` output
     keeps it too. ``prepared`` as for :func:`refine_meshes` (made without dropping
     floaters)."""
+    from .meshes import largest_pieces
+
     t0 = time.perf_counter()
     mans, tol = _within_budget(obj, face_budget, False, frozen, prepared)
     if tol:
         for i, m in mans.items():
             pieces = len(meshops.edge_pieces(obj.parts[i].mesh)[1])
-            obj.parts[i].mesh = _largest_pieces(meshops.to_trimesh(m), pieces)
+            obj.parts[i].mesh = largest_pieces(meshops.to_trimesh(m), pieces)
     return {"simplify_tolerance": tol, "faces": int(sum(len(p.mesh.faces) for p in obj.parts
                                                          if p.mesh is not None)),
             "seconds": time.perf_counter() - t0}
-
-
-def _largest_pieces(mesh, n: int):
-    """``mesh`` with at most its ``n`` largest edge-connected pieces (by surface): a thin
-    wall that simplification pinches off is the simplification's floater, not the model's.
-    Each piece of a closed mesh is closed, so the result stays closed."""
-    import trimesh
-
-    lab, area = meshops.edge_pieces(mesh)
-    if len(area) <= max(n, 1):
-        return mesh
-    keep = np.zeros(len(area), dtype=bool)
-    keep[np.argsort(-area)[:max(n, 1)]] = True
-    out = trimesh.Trimesh(mesh.vertices, np.asarray(mesh.faces)[keep[lab]], process=False)
-    out.remove_unreferenced_vertices()
-    return out
 
 
 def _within_budget(obj: ArticulatedObject, budget: int, floaters: bool, frozen: frozenset,

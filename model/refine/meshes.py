@@ -321,14 +321,30 @@ def _without_specks(mesh, share: float = 0.01):
     sliver that a cut leaves touching the part only at a vertex (a 4-face tetrahedron on a
     carved carcass) is its own shell once written, and a floater to anyone who loads it.
     Each piece of a closed mesh is closed, so dropping whole pieces keeps it closed."""
-    import trimesh
-
     if len(mesh.faces) == 0 or len(mesh.face_adjacency) == 0:
         return mesh
     lab, area = meshops.edge_pieces(mesh)
     keep = area >= share * float(area.sum())
-    if keep.all():
+    return mesh if keep.all() else _pieces(mesh, lab, keep)
+
+
+def largest_pieces(mesh, n: int):
+    """``mesh`` with at most its ``n`` largest edge-connected pieces (by surface): a thin
+    wall that simplification pinches off is the simplification's floater, not the model's.
+    Each piece of a closed mesh is closed, so the result stays closed."""
+    lab, area = meshops.edge_pieces(mesh)
+    if len(area) <= max(n, 1):
         return mesh
+    keep = np.zeros(len(area), dtype=bool)
+    keep[np.argsort(-area)[:max(n, 1)]] = True
+    return _pieces(mesh, lab, keep)
+
+
+def _pieces(mesh, lab, keep):
+    """``mesh`` with only the edge-connected pieces ``keep`` (bool per piece; ``lab``: piece
+    per face, as meshops.edge_pieces gives them)."""
+    import trimesh
+
     out = trimesh.Trimesh(mesh.vertices, np.asarray(mesh.faces)[keep[lab]], process=False)
     out.remove_unreferenced_vertices()
     return out
