@@ -65,7 +65,7 @@ def test_parse_free_form(prompt, category, counts, lower, joints):
      "button.rows=5 button.columns=2 button.layout=grid"),
     # one on each side / at each end is two; "a drawer above each door" one per door
     ("a washer with the dial in the middle and a button on each side of it",
-     "WashingMachine button=2 dial=1"),
+     "WashingMachine button=2 dial=1 dial.hpos=middle"),
     ("a vanity with two doors side by side and a drawer above each door",
      "StorageFurniture door=2 drawer=2 door.layout=row drawer.above=door"),
     # right of a part: that part is on the left; a number in an adjective counts nothing
@@ -94,6 +94,16 @@ def test_parse_free_form(prompt, category, counts, lower, joints):
     ("a safe with a phone-style number pad", "Safe button=12 button.layout=grid "
      "button.rows=4 button.columns=3"),
     ("a cabinet 60 x 40 cm with two drawers", "StorageFurniture drawer=2"),
+    ("tea chest w/ ten drawers: a top row of five and a bottom row of five",
+     "StorageFurniture drawer=10 drawer.layout=grid drawer.rows=2 drawer.columns=5"),
+    ("a big chest with six pairs of drawers side by side", "StorageFurniture drawer=12 "
+     "drawer.layout=grid drawer.rows=6 drawer.columns=2"),
+    # the middle: "in the middle (of the door)", "top center"
+    ("a safe, the combination dial sits in the middle of the door", "Safe dial=1 door=1 "
+     "dial.hpos=middle"),
+    ("a range with a row of five buttons at the top center", "Oven button=5 "
+     "button.layout=row button.vpos=top button.hpos=middle"),
+    ("a cabinet with a drawer in the middle row", "StorageFurniture drawer=1"),
     # a place said of a control panel is its controls' place, not the part named before
     ("a washer, door at the bottom, control panel at the top with two dials and six buttons",
      "WashingMachine door=1 dial=2 button=6 door.vpos=bottom dial.vpos=top button.vpos=top"),

@@ -187,3 +187,106 @@ def test_a_door_beside_a_drawer_stack_it_was_decoded_under_gets_the_stacks_heigh
     assert door.bbox_center[2] + door.bbox_size[2] / 2 == pytest.approx(top, abs=0.02)
     assert door.bbox_center[2] - door.bbox_size[2] / 2 == pytest.approx(bottom, abs=0.02)
     assert _structure(obj) == before
+
+
+def _locker_door(n, centre, size, axis=(0, 0, 1)):
+    return _part(f"door_{n}", "door", 0, size, centre,
+                 Joint(JointType.REVOLUTE, centre, axis, r_range=(0, 1.6)))
+
+
+def test_a_stated_grid_gathers_doors_decoded_on_the_side_onto_the_front():
+    """Ten locker doors, eight decoded on the front and two on the side face: "two rows of
+    five" moves the two onto the front (depth and axis of a front door) and lays out 2 x 5;
+    every door stays thinner than it is wide, so it keeps to the front face."""
+    parts = [_part("body_0", "body", -1, (0.4, 0.6, 1.0), (0, 0, 0.5))]
+    for n in range(8):
+        parts.append(_locker_door(n, (0.21, -0.1 + 0.03 * n, 0.3 + 0.08 * n),
+                                  (0.02 + 0.01 * (n % 3), 0.05, 0.25)))
+    parts.append(_locker_door(8, (0.0, 0.31, 0.5), (0.3, 0.02, 0.25), axis=(0, 1, 0)))
+    parts.append(_locker_door(9, (0.05, -0.31, 0.4), (0.25, 0.02, 0.3), axis=(1, 0, 0)))
+    obj = ArticulatedObject(category="StorageFurniture", name="lockers", parts=parts)
+    before = _structure(obj)
+    _layout(obj, "gym lockers -- 10 doors, two rows of five")
+    doors = [i for i, p in enumerate(obj.parts) if p.label == "door"]
+    got = arrangement(obj, doors)
+    assert (got["layout"], got["rows"], got["columns"]) == ("grid", 2, 5)
+    for i in doors:
+        p = obj.parts[i]
+        assert p.bbox_center[0] > 0.19 and p.bbox_size[0] < min(p.bbox_size[1:])
+        assert abs(p.joint.axis[2]) == pytest.approx(1.0)        # side-hinged on the front
+    assert _structure(obj) == before
+
+
+def _safe_door_with_keypad(handle_z):
+    parts = [_part("body_0", "body", -1, (0.36, 0.4, 0.5), (0, 0, 0.26)),
+             _part("door_0", "door", 0, (0.03, 0.32, 0.24), (0.2, 0.0, 0.28),
+                   Joint(JointType.REVOLUTE, (0.21, -0.16, 0.28), (0, 0, 1), r_range=(0, 1.6)))]
+    for n in range(9):
+        c = (0.22, -0.06 + 0.012 * n, 0.2 + 0.01 * n)
+        parts.append(_part(f"button_{n}", "button", 1, (0.01, 0.03, 0.03), c,
+                           Joint(JointType.PRISMATIC, c, (-1, 0, 0), t_range=(0, 0.005))))
+    parts.append(_part("handle_0", "handle", 1, (0.02, 0.12, 0.02), (0.22, -0.02, handle_z)))
+    return ArticulatedObject(category="Safe", name="safe", parts=parts)
+
+
+def test_a_handle_across_a_stated_keypad_moves_off_it():
+    obj = _safe_door_with_keypad(handle_z=0.25)
+    _layout(obj, "wall safe w/ keypad: 9 buttons, 3x3")
+    buttons = list(range(2, 11))
+    got = arrangement(obj, buttons)
+    assert (got["layout"], got["rows"], got["columns"]) == ("grid", 3, 3)
+    h = obj.parts[-1]
+    lo = np.min([obj.parts[i].bbox_center - obj.parts[i].bbox_size / 2 for i in buttons], 0)
+    hi = np.max([obj.parts[i].bbox_center + obj.parts[i].bbox_size / 2 for i in buttons], 0)
+    hlo, hhi = h.bbox_center - h.bbox_size / 2, h.bbox_center + h.bbox_size / 2
+    assert np.any((hlo[1:] >= hi[1:] - 1e-9) | (hhi[1:] <= lo[1:] + 1e-9))
+    assert min(obj.parts[i].bbox_size[2] for i in buttons) > 0.02   # none squashed
+
+
+def _range(knobs):
+    parts = [_part("body_0", "body", -1, (0.5, 0.7, 0.8), (0, 0, 0.4)),
+             _part("door_0", "door", 0, (0.04, 0.66, 0.56), (0.26, 0.0, 0.36),
+                   Joint(JointType.REVOLUTE, (0.27, 0.0, 0.08), (0, 1, 0), r_range=(0, 1.4)))]
+    for n, c in enumerate(knobs):
+        parts.append(_part(f"knob_{n}", "knob", 0, (0.03, 0.05, 0.05), c,
+                           Joint(JointType.CONTINUOUS, c, (1, 0, 0))))
+    return ArticulatedObject(category="Oven", name="range", parts=parts)
+
+
+def test_knobs_stated_above_a_drop_down_door_go_above_it_and_the_door_stays():
+    """Two rows of three knobs decoded down across the door: they move into the strip above
+    it, round, as rows; the door keeps its place and size."""
+    obj = _range([(0.29, y, z) for z in (0.7, 0.45) for y in (-0.2, 0.0, 0.2)])
+    door = (obj.parts[1].bbox_center.copy(), obj.parts[1].bbox_size.copy())
+    _layout(obj, "range with two rows of three knobs above the oven door")
+    sp = spatial_summary(obj)
+    assert is_above(sp, "knob", "door")
+    assert (sp["knob"]["layout"], sp["knob"]["rows"], sp["knob"]["columns"]) == ("grid", 2, 3)
+    assert np.allclose(obj.parts[1].bbox_center[1:], door[0][1:], atol=0.01)
+    assert np.allclose(obj.parts[1].bbox_size[1:], door[1][1:], atol=0.03)   # not banded
+    for p in obj.parts[2:]:
+        assert p.bbox_size[1] == pytest.approx(p.bbox_size[2])
+
+
+def test_knobs_stated_on_the_left_leave_the_door_its_width():
+    """"four knobs in a line on the left": the knobs come together on the left of the front;
+    the door below them is not banded beside them."""
+    obj = _range([(0.29, y, 0.7) for y in (-0.05, 0.05, 0.15, 0.25)])
+    width = obj.parts[1].bbox_size[1]
+    _layout(obj, "oven with four knobs in a line on the left")
+    assert obj.parts[1].bbox_size[1] == pytest.approx(width, abs=0.03)
+    assert {part_position(obj, i)[0] for i in range(2, 6)} == {"left"}
+    assert spatial_summary(obj)["knob"]["layout"] == "row"
+
+
+def test_two_columns_of_drawers_touching_stay_two_columns():
+    """The fronts' tiling grows a drawer only up to a neighbour beyond it; two columns that
+    touch (1 mm overlap) are still side by side, not grown across each other."""
+    parts = [_part("body_0", "body", -1, (0.45, 1.1, 1.0), (0, 0, 0.5))]
+    for n in range(6):
+        parts.append(_drawer(n, (0.05, 0.25 if n % 2 else -0.25, 0.2 + 0.3 * (n // 2)),
+                             (0.4, 0.501, 0.25)))
+    obj = ArticulatedObject(category="StorageFurniture", name="chest", parts=parts)
+    _layout(obj, "a chest with three pairs of drawers side by side")
+    got = arrangement(obj, list(range(1, 7)))
+    assert (got["layout"], got["rows"], got["columns"]) == ("grid", 3, 2)

@@ -54,6 +54,17 @@ def _rewrite_counts(sentence: str) -> tuple[str, list[_Fact]]:
                       rf"([a-z]+) (?:per|in each|each|a) (?:row|column|stack)\b",
                       r"\1 \2 of \3 \4", sentence)
 
+    # "a top row of five and a bottom row of five (drawers)" is "two rows of five"
+    sentence = re.sub(rf"\b(?:an? |the )?top row of {_N}((?: [a-z]+)?),? (?:and|with|over|above|"
+                      rf"plus) (?:an? |the )?bottom (?:row|one) of {_N}\b",
+                      lambda m: (f"two rows of {m.group(1)}{m.group(2)}"
+                                 if _num(m.group(1)) == _num(m.group(3)) else m.group(0)),
+                      sentence)
+
+    # "six pairs of drawers side by side": six rows of two
+    sentence = re.sub(rf"\b{_N} pairs of ((?:[a-z]+ )?[a-z]+) side by side\b",
+                      r"\1 rows of two \2", sentence)
+
     out, pos = [], 0
     pat = re.compile(
         rf"\b(?:in |into |as )?(?:a |an )?{_N}\s?(?:x|×|by)\s?{_N}\s(grid|array|keypad|matrix|layout)(\s+of\b)?"
@@ -143,7 +154,7 @@ _SPATIAL_PATTERNS: list[tuple[str, str, str]] = [
                   rf"(?!\s?(?:cm|mm|m|in|inch|inches|ft|feet|foot|meters?|metres?|centimet\w*|\"|'))", "post"),
     ("over", rf"\b{_N} over {_N}\b", "post"),
     ("relit", r"\b(above|below|under|underneath|beneath|on top of) (?:it|them)\b", "post"),
-    ("vpos+hpos", r"\b(?:on|at|in) the (top|bottom)[- ](left|right)\b", "post"),
+    ("vpos+hpos", r"\b(?:on|at|in) the (top|bottom)[- ](left|right|cent(?:er|re))\b", "post"),
     ("vpos+row", r"\bacross the (top|bottom)\b", "post"),
     ("layout=row", r"\bacross the (?:front|panel|control panel|face)\b", "post"),
     ("rows+columns", rf"\b{_N} (rows|columns),? (?:and |by |x |× )?{_N} (?:rows|columns)\b", "post"),
@@ -153,6 +164,10 @@ _SPATIAL_PATTERNS: list[tuple[str, str, str]] = [
     ("sideof", r"\b(?:to|on|at) the (left|right)(?:[- ]hand)?(?: side)? of\b(?: (?:the|a|an|its|their|both))?", "post"),
     ("hpos", r"\b(?:the |its )?(left|right)[- ](?:hand )?half (?:is|has|holds|contains|with|:)", "pre"),
     ("hpos", r"\b(?:on|at|to|in) the (left|right)(?:[- ]hand)?(?: side| end| half)?\b", "post"),
+    ("hpos=middle", r"\b(?:(?:sits? |placed |set )?(?:in|at) the (?:middle|cent(?:er|re))"
+                    r"(?: of (?:the |its |their )?(?:front|door|panel|control panel|console|body))?"
+                    r"|cent(?:er|re)d(?: on (?:the |its )?(?:front|door|panel))?)\b"
+                    r"(?! (?:row|drawer|shelf|one|of))", "post"),
     ("vpos", r"\b(?:on|at|near) the (top|bottom)\b(?! of)|\b(?:on|up) (top)\b(?! of)|\bat the (base)\b", "post"),
 ]
 _COMPILED = [(k, re.compile(r), m) for k, r, m in _SPATIAL_PATTERNS]
@@ -224,7 +239,8 @@ def _spatial_facts(sentence: str, toks: list[_Tok]) -> list[_Fact]:
                 facts.append(_Fact("layout", ["row"], a, b, mode))
             elif key == "vpos+hpos":
                 facts.append(_Fact("vpos", [vals[0]], a, b, mode))
-                facts.append(_Fact("hpos", [vals[1]], a, b, mode))
+                side = "middle" if vals[1].startswith("cent") else vals[1]
+                facts.append(_Fact("hpos", [side], a, b, mode))
             elif key == "hinge+sideways":
                 facts.append(_Fact("hinge", vals, a, b, mode))
                 facts.append(_Fact("opens", ["sideways"], a, b, mode))

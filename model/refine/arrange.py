@@ -30,9 +30,11 @@ import numpy as np
 
 from model.core import ArticulatedObject
 
-from .layout import PANELS, SIDE_HINGED, _lohi, _move_subtree, face_of
+from .layout import ON_FACE, PANELS, SIDE_HINGED, _lohi, _move_subtree, face_of
 
 GAP_SHARE = 0.06       # of a cell's side, between neighbouring cells
+DEEP = 1.5             # a knob's or dial's depth at most this many times its width
+THIN = 0.5             # a panel's thickness at most this share of its smaller side
 FRONT = 0              # the face normal of a front / back face (object frame: x forward)
 BANDED = ("drawer", "tray", "door", "lid")   # the groups a "drawers on top" is above
 SIDES = {1: ("left", "right"), 2: ("top", "bottom")}
@@ -44,11 +46,12 @@ def arrange_stated(obj: ArticulatedObject, spatial: Optional[dict]) -> list[str]
     facts), then its bands (above / below / left / right of the others), in ``obj``'s boxes,
     in place, before the layout refinement. Returns what it did, e.g. ["drawer: 3 x 2",
     "door left of drawer"] (rows x parts in the widest row)."""
-    done = []
+    done, grids = [], []
     for label, facts in (spatial or {}).items():
         grid = _grid(facts, sum(p.label == label for p in obj.parts))
-        group = _front_group(obj, label) if grid is not None else None
+        group = _grid_group(obj, label) if grid is not None else None
         if group is not None and _lay_out(obj, group, grid):
+            grids.append(group)
             done.append(f"{label}: {len(grid)} x {max(grid)}")
     for label, facts in (spatial or {}).items():
         banded = set()
@@ -61,9 +64,12 @@ def arrange_stated(obj: ArticulatedObject, spatial: Optional[dict]) -> list[str]
             want = facts.get(key) or []
             if ax not in banded and len(want) == 1 and _to_place(obj, label, ax, want[0]):
                 done.append(f"{label} to the {want[0]}")
+    for group in grids:
+        _clear_grid(obj, group, keep=set(spatial))
     return done
 
 
+SQUEEZE = 0.9      # of the room a place leaves, what a too-wide group of controls spans there
 PLACE_AT = 0.6     # where a group stated on one side goes: its centre this many half-widths
                    # (half-heights) of the body from the body's centre (the summary's
                    # left / right starts at model.data.spatial.HPOS_MARGIN = 0.2)
@@ -86,20 +92,28 @@ def _to_place(obj: ArticulatedObject, label: str, ax: int, where: str) -> bool:
     margin = HPOS_MARGIN if ax == H else VPOS_MARGIN
     bc, bs = body_box(obj)
     half = float(bs[ax]) / 2
-    glo, ghi = _cspan(obj, group, ax)
-    u = ((glo + ghi) / 2 - float(bc[ax])) / half
     sign = {"middle": 0.0, "left": -1.0, "bottom": -1.0, "right": 1.0, "top": 1.0}[where]
-    if (sign == 0 and abs(u) <= margin) or (sign != 0 and sign * u > margin):
+    u = np.array([obj.parts[i].bbox_center[ax] for i in group]) - float(bc[ax])
+    if (sign == 0 and np.all(np.abs(u) <= margin * half)) or \
+            (sign != 0 and np.all(sign * u > margin * half)):
         return False                                      # already there
+    size = max(float(obj.parts[i].bbox_size[ax]) for i in group)
+    room = 2 * margin * half if sign == 0 else (1 - margin) * half - size
+    f = 1.0           # controls too spread for their place come closer ("knobs on the left")
+    if obj.parts[group[0]].label in ON_FACE and np.ptp(u) > SQUEEZE * room > 0:
+        f = SQUEEZE * room / float(np.ptp(u))
+    steps = np.diff(np.unique(np.round(u, 4)))
+    narrow = f * float(steps.min()) * (1 - GAP_SHARE) if f < 1 and len(steps) else math.inf
+    mid = (u.max() + u.min()) / 2
+    new = [(float(bc[ax]) + sign * PLACE_AT * half + f * (c - mid), min(s, narrow))
+           for c, s in ((u[n], float(obj.parts[i].bbox_size[ax])) for n, i in enumerate(group))]
     plo, phi = _cspan(obj, [parent], ax)
-    d = float(bc[ax]) + sign * PLACE_AT * half - (glo + ghi) / 2
-    d = min(max(d, plo - glo), phi - ghi)                 # stays on its parent's face
-    if abs(d) < 1e-6:
-        return False
-    for i in group:
-        centre = obj.parts[i].bbox_center.copy()
-        centre[ax] += d
-        _place(obj, i, centre, obj.parts[i].bbox_size.copy())
+    d = min(max(0.0, plo - min(c - s / 2 for c, s in new)),
+            phi - max(c + s / 2 for c, s in new))         # stays on its parent's face
+    for (c, s), i in zip(new, group):
+        centre, box = obj.parts[i].bbox_center.copy(), obj.parts[i].bbox_size.copy()
+        centre[ax], box[ax] = c + d, s
+        _place(obj, i, centre, _round(obj.parts[i].label, box))
     return True
 
 
@@ -120,6 +134,8 @@ def _stated_bands(obj: ArticulatedObject, label: str, facts: dict) -> list[tuple
     face = face_of(obj, group[0])
     rest = [c for c in obj.children(obj.parts[group[0]].parent)
             if c not in group and obj.parts[c].label in BANDED and face_of(obj, c) == face]
+    if label not in BANDED:       # knobs "on the left" sit on the left of the front: the
+        rest = []                 # oven's door below them keeps its width (_to_place)
     for key, ax, low_word in (("vpos", V, "bottom"), ("hpos", H, "left")):
         want = facts.get(key) or []
         if rest and len(want) == 1 and want[0] in SIDES[ax]:
@@ -141,8 +157,10 @@ def _bands(obj: ArticulatedObject, low: list[int], high: list[int], ax: int) -> 
     where a panel turns about a horizontal axis (an oven's drop-down door stays at the
     bottom)."""
     (alo, ahi), (blo, bhi) = _cspan(obj, low, ax), _cspan(obj, high, ax)
-    if ahi < blo + 0.01 or (ax == V and any(_turns_horizontally(obj, i) for i in low + high)):
+    if ahi < blo + 0.01:
         return False
+    if ax == V and any(_turns_horizontally(obj, i) for i in low + high):
+        return _above_drop_down(obj, low, high)
     lo, hi = min(alo, blo), max(ahi, bhi)
     scale = (hi - lo) / max((ahi - alo) + (bhi - blo), 1e-9)
     cross = V if ax == H else H
@@ -164,6 +182,43 @@ def _bands(obj: ArticulatedObject, low: list[int], high: list[int], ax: int) -> 
                 size[cross] *= cscale
             _place(obj, i, centre, size)
     return True
+
+
+def _above_drop_down(obj: ArticulatedObject, low: list[int], high: list[int]) -> bool:
+    """Controls stated above a panel that turns about a horizontal axis ("knobs above the
+    oven door"): the panel keeps its place, the controls' rows are mapped (squeezed where
+    needed) into the strip between its top and its parent's top."""
+    if any(obj.parts[i].label not in ON_FACE for i in high):
+        return False
+    (_, top), (blo, bhi) = _cspan(obj, low, V), _cspan(obj, high, V)
+    _, ptop = _cspan(obj, [obj.parts[high[0]].parent], V)
+    room = ptop - top
+    gap = GAP_SHARE * room
+    c = np.array([obj.parts[i].bbox_center[V] for i in high])
+    rows = len(np.unique(np.round(c, 4)))
+    if room < 0.02 or bhi - blo <= 0:
+        return False
+    fit = (room - 2 * gap) / rows * (1 - GAP_SHARE)        # a row's height at most
+    sizes = [min(float(obj.parts[i].bbox_size[V]), fit) for i in high]
+    spread = float(np.ptp(c))
+    scale = min(1.0, (room - 2 * gap - max(sizes)) / spread) if spread > 0 else 1.0
+    mid = top + room / 2
+    for n, i in enumerate(high):
+        centre, size = obj.parts[i].bbox_center.copy(), obj.parts[i].bbox_size.copy()
+        centre[V], size[V] = mid + (c[n] - (c.max() + c.min()) / 2) * scale, sizes[n]
+        _place(obj, i, centre, _round(obj.parts[i].label, size))
+    return True
+
+
+def _round(label: str, size: np.ndarray) -> np.ndarray:
+    """A knob's or dial's box as round as the room it was given: its face as wide as tall
+    (the smaller of the two), no deeper than ``DEEP`` times that."""
+    if label not in ("knob", "dial"):
+        return size
+    size = size.copy()
+    size[H] = size[V] = min(size[H], size[V])
+    size[FRONT] = min(size[FRONT], DEEP * size[H])
+    return size
 
 
 def _cspan(obj: ArticulatedObject, group: list[int], ax: int) -> tuple[float, float]:
@@ -267,14 +322,48 @@ def _front_group(obj: ArticulatedObject, label: str, every: bool = True) -> Opti
     return best if 2 * len(best) > len(idx) else None
 
 
+def _grid_group(obj: ArticulatedObject, label: str) -> Optional[list[int]]:
+    """Every part of ``label``, for a stated grid, on the front or back face of one parent
+    that most of them share; members the network decoded on another face of that parent (a
+    locker door on the side, a keypad button pressing upwards) are moved onto it first, with
+    the depth and joint axis of a member of their joint type. None where a member has another
+    parent (the tree never changes) or no member on the face shares its joint type."""
+    group = _front_group(obj, label, every=False)
+    if group is None:
+        return None
+    rest = [i for i, p in enumerate(obj.parts) if p.label == label and i not in group]
+    like = {i: next((g for g in group if obj.parts[g].joint.type == obj.parts[i].joint.type),
+                    None) for i in rest}
+    parent = obj.parts[group[0]].parent
+    if any(obj.parts[i].parent != parent or m is None for i, m in like.items()):
+        return None
+    lo = np.min([_lohi(obj.parts[g])[0] for g in group], axis=0)
+    hi = np.max([_lohi(obj.parts[g])[1] for g in group], axis=0)
+    for i, m in like.items():
+        p, q = obj.parts[i], obj.parts[m]
+        centre, size = (lo + hi) / 2, np.median([obj.parts[g].bbox_size for g in group], axis=0)
+        centre[FRONT], size[FRONT] = q.bbox_center[FRONT], q.bbox_size[FRONT]
+        _place(obj, i, centre, size)
+        p.joint.axis = np.asarray(q.joint.axis, dtype=np.float64).copy()
+        p.joint.t_range = tuple(q.joint.t_range)
+    return group + rest
+
+
 def _lay_out(obj: ArticulatedObject, group: list[int], per_row: list[int],
              gap: Optional[float] = None) -> bool:
     """``group`` in rows of equal cells over the rectangle it covers, ``per_row`` parts per
     row, top row first; ``gap`` m between cells (None: :data:`GAP_SHARE` of a cell)."""
     lo = np.min([_lohi(obj.parts[i])[0] for i in group], axis=0) - (gap or 0.0) / 2
     hi = np.max([_lohi(obj.parts[i])[1] for i in group], axis=0) + (gap or 0.0) / 2
+    parent = obj.parts[group[0]].parent
+    if parent >= 0:                   # within its parent's face: a keypad stays on its door
+        plo, phi = _lohi(obj.parts[parent])
+        for ax in (H, V):
+            if phi[ax] - plo[ax] > 0.5 * (hi[ax] - lo[ax]):
+                lo[ax], hi[ax] = max(lo[ax], plo[ax]), min(hi[ax], phi[ax])
     rows = len(per_row)
     height = (hi[V] - lo[V]) / rows
+    own = np.median([obj.parts[i].bbox_size for i in group], axis=0)   # controls keep theirs
     # top row first, then the viewer's left first: the model's own order where it had one
     order = sorted(group, key=lambda i: -obj.parts[i].bbox_center[V])
     start = 0
@@ -291,8 +380,39 @@ def _lay_out(obj: ArticulatedObject, group: list[int], per_row: list[int],
                 size[H], size[V] = width * (1 - GAP_SHARE), height * (1 - GAP_SHARE)
             else:
                 size[H], size[V] = width - gap, height - gap
+            if obj.parts[i].label in ON_FACE:
+                size[H], size[V] = min(size[H], own[H]), min(size[V], own[V])
+                size = _round(obj.parts[i].label, size)
+            if obj.parts[i].label in PANELS:    # a panel stays thinner than it is wide, so
+                size[FRONT] = min(size[FRONT], THIN * min(size[H], size[V]))   # its face holds
             _place(obj, i, centre, size)
     return True
+
+
+def _clear_grid(obj: ArticulatedObject, group: list[int], keep: set) -> None:
+    """Handles, knobs, buttons and dials on the face of a stated grid that reach into the
+    rectangle it covers (a door's handle across its keypad) move out of it by the shortest way that keeps them
+    on their parent's face, with their children; where none does they stay (the layout
+    refinement then cuts them apart). Parts of the labels in ``keep`` (placed by the prompt
+    themselves) stay."""
+    parent, face = obj.parts[group[0]].parent, face_of(obj, group[0])
+    lo = np.min([_lohi(obj.parts[i])[0] for i in group], axis=0)
+    hi = np.max([_lohi(obj.parts[i])[1] for i in group], axis=0)
+    plo, phi = _lohi(obj.parts[parent])
+    for c in obj.children(parent):
+        label = obj.parts[c].label
+        if c in group or label in keep or label not in ON_FACE or face_of(obj, c) != face:
+            continue
+        clo, chi = _lohi(obj.parts[c])
+        if not all(clo[ax] < hi[ax] and chi[ax] > lo[ax] for ax in (H, V)):
+            continue
+        gap = GAP_SHARE * float(np.min(hi - lo)) / 2
+        moves = [(d, ax) for ax in (H, V)
+                 for d in (hi[ax] + gap - clo[ax], lo[ax] - gap - chi[ax])
+                 if plo[ax] <= clo[ax] + d and chi[ax] + d <= phi[ax]]
+        if moves:
+            d, ax = min(moves, key=lambda m: abs(m[0]))
+            _move_subtree(obj, c, np.eye(3)[ax] * d)
 
 
 def _place(obj: ArticulatedObject, i: int, centre: np.ndarray, size: np.ndarray) -> None:

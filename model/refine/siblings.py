@@ -324,6 +324,7 @@ def _separate_all(obj: ArticulatedObject, members: list[int], k: int) -> int:
 
 
 FRONTS = PANELS + ("drawer",)
+BEYOND = 0.1       # of the smaller front's side: an overlap that still leaves it beyond
 FRAME = 0.023      # m of carcass around a storage front (the data's median at the sides and top)
 
 
@@ -356,11 +357,12 @@ def _fill(obj: ArticulatedObject, parent: int, members: list[int], k: int) -> in
             up, down = R1[d], R0[d]
             for j in fronts:      # any front wholly beyond i along d stays beyond it, so
                 jl, jh = box[j]     # what is above, below, left or right of what keeps so
-                if j == i:
+                if j == i:          # (touching within a tenth of the smaller: beyond)
                     continue
-                if jl[d] >= hi[d] - 1e-6:
+                tol = BEYOND * min(hi[d] - lo[d], jh[d] - jl[d]) + 1e-6
+                if jl[d] >= hi[d] - tol:
                     up = min(up, (hi[d] + jl[d]) / 2 - GAP / 2)
-                elif jh[d] <= lo[d] + 1e-6:
+                elif jh[d] <= lo[d] + tol:
                     down = max(down, (lo[d] + jh[d]) / 2 + GAP / 2)
             lo[d], hi[d] = min(lo[d], down), max(hi[d], up)
             new[i] = (lo, hi)
