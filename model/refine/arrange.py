@@ -55,7 +55,7 @@ def arrange_stated(obj: ArticulatedObject, spatial: Optional[dict]) -> list[str]
             done.append(f"{label}: {len(grid)} x {max(grid)}")
     for label, facts in (spatial or {}).items():
         banded = set()
-        for low, high, ax in _stated_bands(obj, label, facts):
+        for low, high, ax in _stated_bands(obj, label, spatial):
             banded.add(ax)
             if _bands(obj, low, high, ax):
                 a, b = obj.parts[high[0]].label, obj.parts[low[0]].label
@@ -117,12 +117,12 @@ def _to_place(obj: ArticulatedObject, label: str, ax: int, where: str) -> bool:
     return True
 
 
-def _stated_bands(obj: ArticulatedObject, label: str, facts: dict) -> list[tuple]:
-    """(low group, high group, axis) on one face that ``facts`` put side by side along the
-    axis: "drawers above the doors" and "a door below the drawer" (V: low = lower),
+def _stated_bands(obj: ArticulatedObject, label: str, spatial: dict) -> list[tuple]:
+    """(low group, high group, axis) on one face that ``spatial[label]`` puts side by side
+    along the axis: "drawers above the doors" and "a door below the drawer" (V: low = lower),
     "drawers across the top" (above every other drawer, tray, door or lid on that face),
     "a door on the left" (H: low = the viewer's left, of the others on that face)."""
-    group = _front_group(obj, label, every=False)
+    group, facts = _front_group(obj, label, every=False), spatial[label]
     if group is None:
         return []
     out = []
@@ -134,13 +134,25 @@ def _stated_bands(obj: ArticulatedObject, label: str, facts: dict) -> list[tuple
     face = face_of(obj, group[0])
     rest = [c for c in obj.children(obj.parts[group[0]].parent)
             if c not in group and obj.parts[c].label in BANDED and face_of(obj, c) == face]
-    if label not in BANDED:       # knobs "on the left" sit on the left of the front: the
-        rest = []                 # oven's door below them keeps its width (_to_place)
+    if label not in BANDED:
+        # controls on a side are banded against the panels they sit beside (a toaster
+        # oven's dials right of its door), not against those stated above or below controls
+        # (a washer's door below its dial and buttons) or below them on the face (a range's)
+        glo, ghi = _cspan(obj, group, V)
+        over = _vertical(facts) | {lab for lab, f in spatial.items() if _vertical(f) & set(ON_FACE)}
+        rest = [c for c in rest if obj.parts[c].label not in over
+                and min(ghi, _cspan(obj, [c], V)[1]) - max(glo, _cspan(obj, [c], V)[0])
+                > 0.5 * (ghi - glo)]
     for key, ax, low_word in (("vpos", V, "bottom"), ("hpos", H, "left")):
         want = facts.get(key) or []
         if rest and len(want) == 1 and want[0] in SIDES[ax]:
             out.append((group, rest, ax) if want[0] == low_word else (rest, group, ax))
     return out
+
+
+def _vertical(facts: dict) -> set:
+    """The labels ``facts`` put above or below their group."""
+    return set((facts.get("above") or []) + (facts.get("below") or []))
 
 
 def _same_face(obj: ArticulatedObject, a: list[int], b: list[int]) -> bool:
@@ -391,10 +403,10 @@ def _lay_out(obj: ArticulatedObject, group: list[int], per_row: list[int],
 
 def _clear_grid(obj: ArticulatedObject, group: list[int], keep: set) -> None:
     """Handles, knobs, buttons and dials on the face of a stated grid that reach into the
-    rectangle it covers (a door's handle across its keypad) move out of it by the shortest way that keeps them
-    on their parent's face, with their children; where none does they stay (the layout
-    refinement then cuts them apart). Parts of the labels in ``keep`` (placed by the prompt
-    themselves) stay."""
+    rectangle it covers (a door's handle across its keypad) move out of it, with their
+    children, by the shortest way that keeps them on their parent's face; where none does
+    they stay (the layout refinement then cuts them apart). Parts of the labels in ``keep``
+    (placed by the prompt themselves) stay."""
     parent, face = obj.parts[group[0]].parent, face_of(obj, group[0])
     lo = np.min([_lohi(obj.parts[i])[0] for i in group], axis=0)
     hi = np.max([_lohi(obj.parts[i])[1] for i in group], axis=0)
