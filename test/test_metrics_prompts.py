@@ -67,7 +67,7 @@ def test_parse_free_form(prompt, category, counts, lower, joints):
     ("a washer with the dial in the middle and a button on each side of it",
      "WashingMachine button=2 dial=1 dial.hpos=middle"),
     ("a vanity with two doors side by side and a drawer above each door",
-     "StorageFurniture door=2 drawer=2 door.layout=row drawer.above=door"),
+     "StorageFurniture door=2 drawer=2 door.layout=row drawer.above=door drawer.layout=row"),
     # right of a part: that part is on the left; a number in an adjective counts nothing
     ("a cabinet with a door, and two drawers stacked to the right of the door",
      "StorageFurniture door=1 drawer=2 drawer.layout=column drawer.hpos=right "

@@ -362,6 +362,12 @@ def _tidy(out: ExpectedStructure, text: str) -> None:
     for lab, facts in out.spatial.items():
         if out.counts.get(lab) == 1 and facts.get("layout") == "row" and "rows" not in facts:
             del facts["layout"]        # "one drawer across the top": no row of one
+        # "two doors side by side and a drawer above each door": as many above a row, a row
+        other = (facts.get("above") or facts.get("below") or [None])[0]
+        row = (out.spatial.get(other) or {}).get("layout") == "row"
+        if row and "layout" not in facts and out.counts.get(lab, 0) >= 2 \
+                and out.counts.get(lab) == out.counts.get(other):
+            facts["layout"] = "row"
         # "drawers in a 2 x 3 grid": as many as the grid holds, when nothing else counts them
         if lab not in out.counts and "rows" in facts and "columns" in facts:
             out.counts[lab] = int(facts["rows"]) * int(facts["columns"])
