@@ -290,3 +290,22 @@ def test_two_columns_of_drawers_touching_stay_two_columns():
     _layout(obj, "a chest with three pairs of drawers side by side")
     got = arrangement(obj, list(range(1, 7)))
     assert (got["layout"], got["rows"], got["columns"]) == ("grid", 3, 2)
+
+
+def test_a_door_stated_at_the_bottom_below_drawers_reaches_down_the_front():
+    """Decoded with the door across the middle and the drawers over it: "two drawers on top,
+    then one big door at the bottom" bands them over the front's whole height, so the door
+    ends near the bottom instead of floating in the middle of an empty front."""
+    obj = ArticulatedObject(category="StorageFurniture", name="filing", parts=[
+        _part("body_0", "body", -1, (0.5, 0.9, 0.95), (0, 0, 0.49)),
+        _part("door_0", "door", 0, (0.01, 0.8, 0.33), (0.23, 0.0, 0.54),
+              Joint(JointType.REVOLUTE, (0.24, -0.4, 0.54), (0, 0, 1), r_range=(0, 1.6))),
+        _drawer(0, (0.05, 0.1, 0.65), (0.44, 0.72, 0.33)),
+        _drawer(1, (0.03, 0.0, 0.63), (0.36, 0.72, 0.32)),
+    ])
+    _layout(obj, "A tall filing cabinet. Two drawers on top, stacked, then one big door at "
+                 "the bottom.")
+    sp = spatial_summary(obj)
+    assert sp["door"]["vpos"] == ["bottom"] and is_above(sp, "drawer", "door")
+    door = obj.parts[1]
+    assert door.bbox_center[2] - door.bbox_size[2] / 2 < 0.1

@@ -30,7 +30,8 @@ import numpy as np
 
 from model.core import ArticulatedObject
 
-from .layout import ON_FACE, PANELS, SIDE_HINGED, _lohi, _move_subtree, face_of
+from .layout import (ON_FACE, PANELS, SIDE_HINGED, _lohi, _move_subtree, face_of,
+                     frame_of)
 
 GAP_SHARE = 0.06       # of a cell's side, between neighbouring cells
 DEEP = 1.5             # a knob's or dial's depth at most this many times its width
@@ -174,11 +175,15 @@ def _bands(obj: ArticulatedObject, low: list[int], high: list[int], ax: int) -> 
     if ax == V and any(_turns_horizontally(obj, i) for i in low + high):
         return _above_drop_down(obj, low, high)
     lo, hi = min(alo, blo), max(ahi, bhi)
-    scale = (hi - lo) / max((ahi - alo) + (bhi - blo), 1e-9)
-    cross = V if ax == H else H
     # panels side by side share the other extent too: a door left of a stack of drawers is
     # as tall as the stack (else tiling the front grows each across the other's band)
     panels = all(obj.parts[i].label in BANDED for i in low + high)
+    if panels and ax == V:        # fronts one above the other fill the face's height: a door
+        plo, phi = _cspan(obj, [obj.parts[low[0]].parent], V)   # "at the bottom" below two
+        frame = frame_of(phi - plo)                              # drawers reaches down
+        lo, hi = min(lo, plo + frame), max(hi, phi - frame)
+    scale = (hi - lo) / max((ahi - alo) + (bhi - blo), 1e-9)
+    cross = V if ax == H else H
     (c1, d1), (c2, d2) = _cspan(obj, low, cross), _cspan(obj, high, cross)
     clo, chi = min(c1, c2), max(d1, d2)
     for g, glo, base in ((low, alo, lo), (high, blo, hi - (bhi - blo) * scale)):

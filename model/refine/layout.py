@@ -116,6 +116,11 @@ def face_of(obj: ArticulatedObject, i: int) -> Optional[tuple[int, float]]:
     return None
 
 
+def frame_of(side: float) -> float:
+    """The frame of a parent's face of side ``side`` (m) left around an opening in it."""
+    return min(max(FRAME, 0.04 * side), 0.25 * side)
+
+
 def _attach(obj: ArticulatedObject, i: int, face: tuple[int, float]) -> None:
     """Move part ``i`` onto / into its parent's face and within the face's extent."""
     p, par = obj.parts[i], obj.parts[obj.parts[i].parent]
@@ -145,7 +150,7 @@ def _attach(obj: ArticulatedObject, i: int, face: tuple[int, float]) -> None:
             continue
         room = phi[d] - plo[d]
         if inset:        # an opening leaves a frame of the parent around it
-            room -= 2 * min(max(FRAME, 0.04 * room), 0.25 * room)
+            room -= 2 * frame_of(room)
         size = min(hi[d] - lo[d], room)
         margin = (phi[d] - plo[d] - room) / 2
         c = float(np.clip((lo[d] + hi[d]) / 2, plo[d] + margin + size / 2,
