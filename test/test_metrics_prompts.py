@@ -104,6 +104,10 @@ def test_parse_free_form(prompt, category, counts, lower, joints):
     ("a range with a row of five buttons at the top center", "Oven button=5 "
      "button.layout=row button.vpos=top button.hpos=middle"),
     ("a cabinet with a drawer in the middle row", "StorageFurniture drawer=1"),
+    # a grid said after its part keeps the words after it ("... below the dial")
+    ("a safe with a dial and six buttons in two rows of three below the dial",
+     "Safe dial=1 button=6 button.layout=grid button.rows=2 button.columns=3 "
+     "button.below=dial"),
     # a place said of a control panel is its controls' place, not the part named before
     ("a washer, door at the bottom, control panel at the top with two dials and six buttons",
      "WashingMachine door=1 dial=2 button=6 door.vpos=bottom dial.vpos=top button.vpos=top"),

@@ -98,8 +98,8 @@ def _rewrite_counts(sentence: str) -> tuple[str, list[_Fact]]:
             if followed:
                 text = f"{R * C} "
                 mode = "pre"
-            else:
-                text = "in a grid"
+            else:                            # (the space the match took stays)
+                text = "in a grid" + (" " if g[7] else "")
                 mode = "post"
             lay = "grid" if R > 1 and C > 1 else ("row" if R == 1 else "column")
             for k, v in (("layout", lay), ("rows", R), ("columns", C)):
