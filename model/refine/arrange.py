@@ -140,7 +140,8 @@ def _stated_bands(obj: ArticulatedObject, label: str, spatial: dict) -> list[tup
         # oven's dials right of its door), not against those stated above or below controls
         # (a washer's door below its dial and buttons) or below them on the face (a range's)
         glo, ghi = _cspan(obj, group, V)
-        over = _vertical(facts) | {lab for lab, f in spatial.items() if _vertical(f) & set(ON_FACE)}
+        over = _vertical(facts) | {lab for lab, f in spatial.items()
+                                   if _vertical(f) & set(ON_FACE)}
         rest = [c for c in rest if obj.parts[c].label not in over
                 and min(ghi, _cspan(obj, [c], V)[1]) - max(glo, _cspan(obj, [c], V)[0])
                 > 0.5 * (ghi - glo)]
@@ -423,7 +424,7 @@ def _clear_grid(obj: ArticulatedObject, group: list[int], keep: set) -> None:
         clo, chi = _lohi(obj.parts[c])
         if not all(clo[ax] < hi[ax] and chi[ax] > lo[ax] for ax in (H, V)):
             continue
-        gap = GAP_SHARE * float(np.min(hi - lo)) / 2
+        gap = GAP_SHARE * float(min(hi[H] - lo[H], hi[V] - lo[V])) / 2
         moves = [(d, ax) for ax in (H, V)
                  for d in (hi[ax] + gap - clo[ax], lo[ax] - gap - chi[ax])
                  if plo[ax] <= clo[ax] + d and chi[ax] + d <= phi[ax]]
