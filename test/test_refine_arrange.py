@@ -309,3 +309,26 @@ def test_a_door_stated_at_the_bottom_below_drawers_reaches_down_the_front():
     assert sp["door"]["vpos"] == ["bottom"] and is_above(sp, "drawer", "door")
     door = obj.parts[1]
     assert door.bbox_center[2] - door.bbox_size[2] / 2 < 0.1
+
+
+def test_a_drawer_decoded_on_the_side_is_turned_onto_the_front_to_be_banded():
+    """"one drawer at the top and two doors below it", the drawer decoded on the cabinet's
+    left side (its depth along the front, sliding sideways): it is turned onto the front,
+    slides out of it, and sits above the doors."""
+    obj = ArticulatedObject(category="StorageFurniture", name="kitchen", parts=[
+        _part("body_0", "body", -1, (0.5, 0.9, 1.0), (0, 0, 0.5)),
+        _part("door_0", "door", 0, (0.02, 0.85, 0.35), (0.24, 0.0, 0.3),
+              Joint(JointType.REVOLUTE, (0.25, -0.42, 0.3), (0, 0, 1), r_range=(0, 1.6))),
+        _part("door_1", "door", 0, (0.02, 0.85, 0.35), (0.24, 0.0, 0.7),
+              Joint(JointType.REVOLUTE, (0.25, -0.42, 0.7), (0, 0, 1), r_range=(0, 1.6))),
+        _part("drawer_0", "drawer", 0, (0.7, 0.4, 0.3), (0.0, -0.25, 0.5),
+              Joint(JointType.PRISMATIC, (0.0, -0.25, 0.5), (0, -1, 0), t_range=(0, 0.3))),
+    ])
+    before = _structure(obj)
+    _layout(obj, "kitchen base cabinet with one drawer at the top and two doors below it")
+    drawer = obj.parts[3]
+    assert abs(drawer.joint.axis[0]) == pytest.approx(1.0) and drawer.joint.axis[0] > 0
+    assert drawer.bbox_center[0] + drawer.bbox_size[0] / 2 == pytest.approx(0.25, abs=0.03)
+    sp = spatial_summary(obj)
+    assert sp["drawer"]["vpos"] == ["top"] and is_above(sp, "drawer", "door")
+    assert _structure(obj) == before

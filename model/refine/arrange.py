@@ -124,6 +124,8 @@ def _stated_bands(obj: ArticulatedObject, label: str, spatial: dict) -> list[tup
     "drawers across the top" (above every other drawer, tray, door or lid on that face),
     "a door on the left" (H: low = the viewer's left, of the others on that face)."""
     group, facts = _front_group(obj, label, every=False), spatial[label]
+    if group is None and label in BANDED:
+        group = _turned_to_front(obj, label)
     if group is None:
         return []
     out = []
@@ -150,6 +152,44 @@ def _stated_bands(obj: ArticulatedObject, label: str, spatial: dict) -> list[tup
         if rest and len(want) == 1 and want[0] in SIDES[ax]:
             out.append((group, rest, ax) if want[0] == low_word else (rest, group, ax))
     return out
+
+
+def _turned_to_front(obj: ArticulatedObject, label: str) -> Optional[list[int]]:
+    """Drawers or doors of ``label`` that the network put on a side, top or back face of
+    their parent while other drawers, trays, doors or lids sit on its front ("one drawer at
+    the top and two doors below it", the drawer decoded on the cabinet's side): each is turned
+    onto that front (its box rotated so its depth runs along the front's normal, centred
+    across the front, its joint along the normal) so that the stated bands can place it.
+    None where they have different parents or the parent has no front."""
+    idx = [i for i, p in enumerate(obj.parts) if p.label == label]
+    parent = obj.parts[idx[0]].parent if idx else -1
+    if parent < 0 or any(obj.parts[i].parent != parent for i in idx):
+        return None
+    fronts = [face_of(obj, c) for c in obj.children(parent)
+              if obj.parts[c].label in BANDED and obj.parts[c].label != label]
+    fronts = [f for f in fronts if f is not None and f[0] == FRONT]
+    if not fronts:
+        return None
+    s = max(set(fronts), key=fronts.count)[1]
+    plo, phi = _lohi(obj.parts[parent])
+    for i in idx:
+        p, face = obj.parts[i], face_of(obj, i)
+        if face == (FRONT, s):
+            continue
+        size = p.bbox_size.copy()
+        if face is not None and face[0] != FRONT:      # rotate the box about the third axis
+            size[FRONT], size[face[0]] = size[face[0]], size[FRONT]
+        size = np.minimum(size, phi - plo)
+        centre = p.bbox_center.copy()
+        centre[FRONT] = (phi[FRONT] if s > 0 else plo[FRONT]) - s * size[FRONT] / 2
+        centre[H] = (plo[H] + phi[H]) / 2
+        _place(obj, i, centre, size)
+        j = p.joint
+        j.origin = centre.copy()
+        if j.type.translates:
+            j.axis = np.eye(3)[FRONT] * s
+            j.t_range = (0.0, float(max(abs(j.t_range[0]), abs(j.t_range[1]))))
+    return idx
 
 
 def _vertical(facts: dict) -> set:
