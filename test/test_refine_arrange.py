@@ -332,3 +332,18 @@ def test_a_drawer_decoded_on_the_side_is_turned_onto_the_front_to_be_banded():
     sp = spatial_summary(obj)
     assert sp["drawer"]["vpos"] == ["top"] and is_above(sp, "drawer", "door")
     assert _structure(obj) == before
+
+
+def test_a_drawer_stated_in_a_corner_goes_above_and_then_to_its_side():
+    """"a detergent drawer at the top left": the drawer gets the band above the door, then
+    moves left within it (a second, side-by-side band would stretch it back down)."""
+    obj = ArticulatedObject(category="WashingMachine", name="washer", parts=[
+        _part("body_0", "body", -1, (0.6, 0.6, 0.9), (0, 0, 0.45)),
+        _part("door_0", "door", 0, (0.03, 0.45, 0.45), (0.3, 0.0, 0.45),
+              Joint(JointType.REVOLUTE, (0.31, 0.22, 0.45), (0, 0, 1), r_range=(0, 1.6))),
+        _drawer(0, (0.15, 0.1, 0.5), (0.3, 0.2, 0.12)),
+    ])
+    _layout(obj, "a washing machine with a detergent drawer at the top left")
+    sp = spatial_summary(obj)
+    assert sp["drawer"]["vpos"] == ["top"] and sp["drawer"]["hpos"] == ["left"]
+    assert is_above(sp, "drawer", "door")

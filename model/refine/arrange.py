@@ -56,9 +56,9 @@ def arrange_stated(obj: ArticulatedObject, spatial: Optional[dict]) -> list[str]
             done.append(f"{label}: {len(grid)} x {max(grid)}")
     for label, facts in (spatial or {}).items():
         banded = set()
-        for low, high, ax in _stated_bands(obj, label, spatial):
+        for low, high, ax, share in _stated_bands(obj, label, spatial):
             banded.add(ax)
-            if _bands(obj, low, high, ax):
+            if _bands(obj, low, high, ax, share):
                 a, b = obj.parts[high[0]].label, obj.parts[low[0]].label
                 done.append(f"{a} above {b}" if ax == V else f"{b} left of {a}")
         for key, ax in (("hpos", H), ("vpos", V)):
@@ -119,12 +119,14 @@ def _to_place(obj: ArticulatedObject, label: str, ax: int, where: str) -> bool:
 
 
 def _stated_bands(obj: ArticulatedObject, label: str, spatial: dict) -> list[tuple]:
-    """(low group, high group, axis) on one face that ``spatial[label]`` puts side by side
-    along the axis: "drawers above the doors" and "a door below the drawer" (V: low = lower),
-    "drawers across the top" (above every other drawer, tray, door or lid on that face),
-    "a door on the left" (H: low = the viewer's left, of the others on that face)."""
+    """(low group, high group, axis, share) on one face that ``spatial[label]`` puts side by
+    side along the axis: "drawers above the doors" and "a door below the drawer" (V: low =
+    lower), "drawers across the top" (above every other drawer, tray, door or lid on that
+    face), "a door on the left" (H: low = the viewer's left, of the others on that face);
+    ``share``: the groups also share the other extent (not for a corner, "at the top left")."""
     group, facts = _front_group(obj, label, every=False), spatial[label]
-    if group is None and label in BANDED:
+    placed = any(facts.get(k) for k in ("above", "below", "vpos", "hpos"))
+    if group is None and label in BANDED and placed:
         group = _turned_to_front(obj, label)
     if group is None:
         return []
@@ -133,7 +135,7 @@ def _stated_bands(obj: ArticulatedObject, label: str, spatial: dict) -> list[tup
         for other in facts.get(key) or []:
             og = _front_group(obj, other, every=False)
             if og is not None and _same_face(obj, group, og):
-                out.append((og, group, V) if key == "above" else (group, og, V))
+                out.append((og, group, V, True) if key == "above" else (group, og, V, True))
     face = face_of(obj, group[0])
     rest = [c for c in obj.children(obj.parts[group[0]].parent)
             if c not in group and obj.parts[c].label in BANDED and face_of(obj, c) == face]
@@ -150,7 +152,12 @@ def _stated_bands(obj: ArticulatedObject, label: str, spatial: dict) -> list[tup
     for key, ax, low_word in (("vpos", V, "bottom"), ("hpos", H, "left")):
         want = facts.get(key) or []
         if rest and len(want) == 1 and want[0] in SIDES[ax]:
-            out.append((group, rest, ax) if want[0] == low_word else (rest, group, ax))
+            # a corner ("at the top left"): the band above at the group's own width, then
+            # the side place (_to_place)
+            share = ax == H or not facts.get("hpos")
+            out.append((group, rest, ax, share) if want[0] == low_word else
+                       (rest, group, ax, share))
+            break
     return out
 
 
@@ -202,12 +209,14 @@ def _same_face(obj: ArticulatedObject, a: list[int], b: list[int]) -> bool:
             and face_of(obj, a[0]) == face_of(obj, b[0]))
 
 
-def _bands(obj: ArticulatedObject, low: list[int], high: list[int], ax: int) -> bool:
+def _bands(obj: ArticulatedObject, low: list[int], high: list[int], ax: int,
+           share: bool = True) -> bool:
     """Unless ``low`` already sits wholly below (V) or left of (H) ``high``: the span both
     groups cover along ``ax`` is split into a low and a high band as long as each group's
     own span (scaled to fill it), and each group is mapped into its band with its own
     layout (relative places and sizes) kept; groups of panels (drawers, doors...) are also
-    stretched across the extent both cover on the other axis. Not top to bottom on a face
+    stretched across the extent both cover on the other axis (``share``), and fill their
+    face's height when one is above the other. Not top to bottom on a face
     where a panel turns about a horizontal axis (an oven's drop-down door stays at the
     bottom)."""
     (alo, ahi), (blo, bhi) = _cspan(obj, low, ax), _cspan(obj, high, ax)
@@ -218,8 +227,9 @@ def _bands(obj: ArticulatedObject, low: list[int], high: list[int], ax: int) -> 
     lo, hi = min(alo, blo), max(ahi, bhi)
     # panels side by side share the other extent too: a door left of a stack of drawers is
     # as tall as the stack (else tiling the front grows each across the other's band)
-    panels = all(obj.parts[i].label in BANDED for i in low + high)
-    if panels and ax == V:        # fronts one above the other fill the face's height: a door
+    fronts = all(obj.parts[i].label in BANDED for i in low + high)
+    panels = fronts and share
+    if fronts and ax == V:        # fronts one above the other fill the face's height: a door
         plo, phi = _cspan(obj, [obj.parts[low[0]].parent], V)   # "at the bottom" below two
         frame = frame_of(phi - plo)                              # drawers reaches down
         lo, hi = min(lo, plo + frame), max(hi, phi - frame)
