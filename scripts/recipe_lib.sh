@@ -54,7 +54,7 @@ train_chunks() {   # train_chunks KIND OUT STEPS ARGS...: resumable chunks of <=
     set +e
     # --chunk-minutes stops the process cleanly with its checkpoint; timeout is only a
     # backstop (loading the cached box-frame samples comes before the loop's clock starts)
-    timeout --signal=TERM "$(( (CHUNK_MIN + 10) * 60 ))" "${cmd[@]}"
+    timeout --signal=TERM "$(( (CHUNK_MIN + ${PREP_MIN:-10}) * 60 ))" "${cmd[@]}"
     local rc=$?
     set -e
     local after; after=$(ckpt_step "$ckpt")

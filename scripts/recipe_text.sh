@@ -30,7 +30,8 @@ FRAME=${FRAME:-parent}
 MODES=${MODES:-4}
 SEED=${SEED:-0}
 THREADS=${THREADS:-2}
-CHUNK_MIN=${CHUNK_MIN:-140}
+CHUNK_MIN=${CHUNK_MIN:-120}     # training minutes per invocation; + PREP_MIN of loading <= 2.5 h
+PREP_MIN=${PREP_MIN:-30}        # a first chunk encodes every description and target (~25 min)
 RUNS=${RUNS:-runs/text_${NAME}}
 STAGE=${STAGE:-all}
 VERSION=${VERSION:-}
