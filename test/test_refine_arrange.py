@@ -24,6 +24,12 @@ def _structure(obj):
     return [(p.label, p.parent, p.joint.type) for p in obj.parts]
 
 
+def _grid_of(obj, group):
+    """(layout, rows, columns) the spatial summary reads for ``group``."""
+    got = arrangement(obj, group)
+    return got["layout"], got["rows"], got["columns"]
+
+
 def _layout(obj, prompt):
     """What Generator.layout does with a prompt's facts."""
     facts = parse_prompt(prompt).spatial
@@ -55,8 +61,7 @@ def test_six_drawers_decoded_in_one_column_end_up_in_two_columns():
     before = _structure(obj)
     _layout(obj, "a sideboard with six small drawers in two columns")
     drawers = [i for i, p in enumerate(obj.parts) if p.label == "drawer"]
-    got = arrangement(obj, drawers)
-    assert (got["layout"], got["rows"], got["columns"]) == ("grid", 3, 2)
+    assert _grid_of(obj, drawers) == ("grid", 3, 2)
     assert _structure(obj) == before
     handle, drawer = obj.parts[-1], obj.parts[1]
     lo, hi = drawer.bbox_center - drawer.bbox_size / 2, drawer.bbox_center + drawer.bbox_size / 2
@@ -208,8 +213,7 @@ def test_a_stated_grid_gathers_doors_decoded_on_the_side_onto_the_front():
     before = _structure(obj)
     _layout(obj, "gym lockers -- 10 doors, two rows of five")
     doors = [i for i, p in enumerate(obj.parts) if p.label == "door"]
-    got = arrangement(obj, doors)
-    assert (got["layout"], got["rows"], got["columns"]) == ("grid", 2, 5)
+    assert _grid_of(obj, doors) == ("grid", 2, 5)
     for i in doors:
         p = obj.parts[i]
         assert p.bbox_center[0] > 0.19 and p.bbox_size[0] < min(p.bbox_size[1:])
@@ -233,8 +237,7 @@ def test_a_handle_across_a_stated_keypad_moves_off_it():
     obj = _safe_door_with_keypad(handle_z=0.25)
     _layout(obj, "wall safe w/ keypad: 9 buttons, 3x3")
     buttons = list(range(2, 11))
-    got = arrangement(obj, buttons)
-    assert (got["layout"], got["rows"], got["columns"]) == ("grid", 3, 3)
+    assert _grid_of(obj, buttons) == ("grid", 3, 3)
     h = obj.parts[-1]
     lo = np.min([obj.parts[i].bbox_center - obj.parts[i].bbox_size / 2 for i in buttons], 0)
     hi = np.max([obj.parts[i].bbox_center + obj.parts[i].bbox_size / 2 for i in buttons], 0)
@@ -288,8 +291,7 @@ def test_two_columns_of_drawers_touching_stay_two_columns():
                              (0.4, 0.501, 0.25)))
     obj = ArticulatedObject(category="StorageFurniture", name="chest", parts=parts)
     _layout(obj, "a chest with three pairs of drawers side by side")
-    got = arrangement(obj, list(range(1, 7)))
-    assert (got["layout"], got["rows"], got["columns"]) == ("grid", 3, 2)
+    assert _grid_of(obj, list(range(1, 7))) == ("grid", 3, 2)
 
 
 def test_a_door_stated_at_the_bottom_below_drawers_reaches_down_the_front():

@@ -30,7 +30,7 @@ import numpy as np
 
 from model.core import ArticulatedObject
 
-from .layout import (ON_FACE, PANELS, SIDE_HINGED, _lohi, _move_subtree, face_of,
+from .layout import (ON_FACE, PANELS, SIDE_HINGED, _lohi, _move_subtree, _union, face_of,
                      frame_of)
 
 GAP_SHARE = 0.06       # of a cell's side, between neighbouring cells
@@ -146,9 +146,9 @@ def _stated_bands(obj: ArticulatedObject, label: str, spatial: dict) -> list[tup
         glo, ghi = _cspan(obj, group, V)
         over = _vertical(facts) | {lab for lab, f in spatial.items()
                                    if _vertical(f) & set(ON_FACE)}
+        spans = {c: _cspan(obj, [c], V) for c in rest}
         rest = [c for c in rest if obj.parts[c].label not in over
-                and min(ghi, _cspan(obj, [c], V)[1]) - max(glo, _cspan(obj, [c], V)[0])
-                > 0.5 * (ghi - glo)]
+                and min(ghi, spans[c][1]) - max(glo, spans[c][0]) > 0.5 * (ghi - glo)]
     for key, ax, low_word in (("vpos", V, "bottom"), ("hpos", H, "left")):
         want = facts.get(key) or []
         if rest and len(want) == 1 and want[0] in SIDES[ax]:
@@ -291,8 +291,8 @@ def _round(label: str, size: np.ndarray) -> np.ndarray:
 
 def _cspan(obj: ArticulatedObject, group: list[int], ax: int) -> tuple[float, float]:
     """The extent ``group`` covers along ``ax``."""
-    lo, hi = zip(*(_lohi(obj.parts[i]) for i in group))
-    return float(np.min(np.array(lo)[:, ax])), float(np.max(np.array(hi)[:, ax]))
+    lo, hi = _union([obj.parts[i] for i in group])
+    return float(lo[ax]), float(hi[ax])
 
 
 def _turns_horizontally(obj: ArticulatedObject, i: int) -> bool:
@@ -405,8 +405,7 @@ def _grid_group(obj: ArticulatedObject, label: str) -> Optional[list[int]]:
     parent = obj.parts[group[0]].parent
     if any(obj.parts[i].parent != parent or m is None for i, m in like.items()):
         return None
-    lo = np.min([_lohi(obj.parts[g])[0] for g in group], axis=0)
-    hi = np.max([_lohi(obj.parts[g])[1] for g in group], axis=0)
+    lo, hi = _union([obj.parts[g] for g in group])
     for i, m in like.items():
         p, q = obj.parts[i], obj.parts[m]
         centre, size = (lo + hi) / 2, np.median([obj.parts[g].bbox_size for g in group], axis=0)
@@ -421,8 +420,8 @@ def _lay_out(obj: ArticulatedObject, group: list[int], per_row: list[int],
              gap: Optional[float] = None) -> bool:
     """``group`` in rows of equal cells over the rectangle it covers, ``per_row`` parts per
     row, top row first; ``gap`` m between cells (None: :data:`GAP_SHARE` of a cell)."""
-    lo = np.min([_lohi(obj.parts[i])[0] for i in group], axis=0) - (gap or 0.0) / 2
-    hi = np.max([_lohi(obj.parts[i])[1] for i in group], axis=0) + (gap or 0.0) / 2
+    lo, hi = _union([obj.parts[i] for i in group])
+    lo, hi = lo - (gap or 0.0) / 2, hi + (gap or 0.0) / 2
     parent = obj.parts[group[0]].parent
     if parent >= 0:                   # within its parent's face: a keypad stays on its door
         plo, phi = _lohi(obj.parts[parent])
@@ -464,8 +463,7 @@ def _clear_grid(obj: ArticulatedObject, group: list[int], keep: set) -> None:
     they stay (the layout refinement then cuts them apart). Parts of the labels in ``keep``
     (placed by the prompt themselves) stay."""
     parent, face = obj.parts[group[0]].parent, face_of(obj, group[0])
-    lo = np.min([_lohi(obj.parts[i])[0] for i in group], axis=0)
-    hi = np.max([_lohi(obj.parts[i])[1] for i in group], axis=0)
+    lo, hi = _union([obj.parts[i] for i in group])
     plo, phi = _lohi(obj.parts[parent])
     for c in obj.children(parent):
         label = obj.parts[c].label

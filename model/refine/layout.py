@@ -64,6 +64,12 @@ def _lohi(p) -> tuple[np.ndarray, np.ndarray]:
     return p.bbox_center - p.bbox_size / 2, p.bbox_center + p.bbox_size / 2
 
 
+def _union(parts) -> tuple[np.ndarray, np.ndarray]:
+    """(lo, hi) of the box that covers every one of ``parts``' boxes."""
+    return (np.min([_lohi(p)[0] for p in parts], axis=0),
+            np.max([_lohi(p)[1] for p in parts], axis=0))
+
+
 def _set(p, lo, hi) -> None:
     lo, hi = np.minimum(lo, hi), np.maximum(lo, hi)
     p.bbox_center = (lo + hi) / 2

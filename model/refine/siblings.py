@@ -8,7 +8,7 @@ import numpy as np
 from model.core import ArticulatedObject
 
 from .layout import (CLEAR, GAP, MIN_KEEP, PANELS, SMALL, LayoutConfig, _attach, _lohi,
-                     _move_subtree, _set, face_of)
+                     _move_subtree, _set, _union, face_of)
 
 
 def _clusters(values: np.ndarray, tol: float) -> list[list[int]]:
@@ -264,11 +264,6 @@ def _overlap(a, b, pad: float = 0.0) -> bool:
     alo, ahi = _lohi(a)
     blo, bhi = _lohi(b)
     return bool(np.all(alo < bhi - pad) and np.all(blo < ahi - pad))
-
-
-def _union(parts) -> tuple[np.ndarray, np.ndarray]:
-    return (np.min([_lohi(p)[0] for p in parts], axis=0),
-            np.max([_lohi(p)[1] for p in parts], axis=0))
 
 
 def _separate(first_group: list, second_group: list, k: int) -> bool:
