@@ -8,7 +8,7 @@
 #   STAGE=sdf bash scripts/recipe_geometry.sh    # one stage: data | cache | sdf | prior | eval | export
 #
 # Settings (environment variables, defaults below): N_OBJECTS, SEED, VERSION, PRESET,
-# SDF_STEPS, PRIOR_STEPS, THREADS, CHUNK_MIN, RUNS. Each run folder gets RECIPE.md with the
+# SDF_STEPS, PRIOR_STEPS, THREADS, BANK_PER_TEXT, CHUNK_MIN, RUNS. Each run folder gets RECIPE.md with the
 # command lines, seed, data version, device and wall times of every chunk.
 #
 # Why these settings: docs/geometry.md, "How good it is". Estimated wall time on 2 CPU
@@ -25,6 +25,7 @@ PRESET=${PRESET:-small-fine}
 SDF_STEPS=${SDF_STEPS:-26000}
 PRIOR_STEPS=${PRIOR_STEPS:-20000}
 THREADS=${THREADS:-2}
+BANK_PER_TEXT=${BANK_PER_TEXT:-400}    # retrieval latents kept per label in the exported prior
 CHUNK_MIN=${CHUNK_MIN:-140}            # training minutes per invocation (+ <= 10 min loading: <= 2.5 h)
 RUNS=${RUNS:-runs/geometry_${NAME}}
 STAGE=${STAGE:-all}
@@ -86,8 +87,10 @@ stage_eval() {   # validation only, new weights and the shipped ones side by sid
 
 stage_export() {   # stripped fp16 copies beside the runs (committing them is a separate step)
   python -c "from model.geometry.train import export_weights as e; \
-e('$SDF_RUN/ckpt.pt', '$RUNS/sdf_$PRESET.pt', 'sdf'); e('$PRIOR_RUN/ckpt.pt', '$RUNS/prior_$PRESET.pt', 'prior')"
-  record "$RUNS" "$(date -u +%FT%TZ) export: $RUNS/sdf_$PRESET.pt, $RUNS/prior_$PRESET.pt"
+e('$SDF_RUN/ckpt.pt', '$RUNS/sdf_$PRESET.pt', 'sdf'); \
+e('$PRIOR_RUN/ckpt.pt', '$RUNS/prior_$PRESET.pt', 'prior', $BANK_PER_TEXT, $SEED)"
+  record "$RUNS" "$(date -u +%FT%TZ) export: $RUNS/sdf_$PRESET.pt, $RUNS/prior_$PRESET.pt" \
+    "(retrieval bank: at most $BANK_PER_TEXT latents per label)"
 }
 
 case "$STAGE" in

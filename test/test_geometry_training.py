@@ -126,6 +126,16 @@ def test_train_commands_api_and_resume(prim_data, tmp_path):
     for b in range(2):   # restricted to the same label text
         assert bank["texts"][int(bank["text_ids"][idx[b]])] == texts[b]
     assert torch.allclose(zr, bank["latents"][idx].float())
+    # a thinned bank: at most K latents per label, label statistics those of the whole bank
+    from model.geometry.train import export_weights
+    export_weights(prior_out / "ckpt.pt", tmp_path / "prior_thin.pt", "prior", bank_per_text=2)
+    thin = ShapeModel.load(sdf_out / "ckpt.pt", tmp_path / "prior_thin.pt")
+    counts = torch.bincount(thin.bank["text_ids"], minlength=len(bank["texts"]))
+    assert counts.max() <= 2 and len(thin.bank["object_ids"]) == len(thin.bank["latents"])
+    assert len(thin.bank["latents"]) < len(bank["latents"])
+    assert torch.allclose(thin.label_logits(texts), P, atol=2e-2)
+    zt, it = thin.retrieve(z, texts)
+    assert thin.bank["texts"][int(thin.bank["text_ids"][it[0]])] == texts[0]
     enc = shape.encode(torch.rand(2, 128, 3) * 0.5)
     assert enc.shape == (2, get_preset("tiny").sdf.z_dim)
     # prior checkpoint paired with the wrong auto-encoder is refused

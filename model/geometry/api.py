@@ -99,12 +99,16 @@ class ShapeModel:
         for t in texts:
             if t not in self._label_logits:
                 lat = self.bank.get("latents")
-                if lat is not None and t in self.bank["texts"]:
+                stored = self.bank.get("label_logits")      # a thinned bank keeps them
+                known = t in self.bank.get("texts", ())
+                if known and stored is not None:
+                    self._label_logits[t] = stored[self.bank["texts"].index(t)].float()
+                elif known and lat is not None:
                     sel = self.bank["text_ids"] == self.bank["texts"].index(t)
                     P = pr.code_distribution(lat[sel].float()).mean(0)
+                    self._label_logits[t] = P.clamp_min(1e-8).log()
                 else:
-                    P = torch.full((K, N), 1.0 / N)
-                self._label_logits[t] = P.clamp_min(1e-8).log()
+                    self._label_logits[t] = torch.full((K, N), 1.0 / N).log()
             out.append(self._label_logits[t])
         return torch.stack(out)
 

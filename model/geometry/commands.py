@@ -22,6 +22,10 @@ def _train_parser(kind: str) -> argparse.ArgumentParser:
         p.add_argument("--sdf", required=True, help="trained auto-encoder checkpoint")
         p.add_argument("--codebooks", type=int, help="number of codebooks C (preset: 4)")
         p.add_argument("--codebook-size", type=int, help="entries per codebook N (preset: 128)")
+        p.add_argument("--bank-per-text", type=int, default=0, metavar="K",
+                       help="with --export: keep at most K retrieval latents per label text "
+                            "(a seeded draw; label code statistics stay those of all parts); "
+                            "0 = all")
     p.add_argument("--steps", type=int, help="optimisation steps (default: the preset's)")
     p.add_argument("--epochs", type=float, help="alternative to --steps: passes over the parts")
     p.add_argument("--batch-size", type=int)
@@ -57,7 +61,8 @@ def _train(kind: str, argv: list[str]) -> int:
     import os
     if int(os.environ.get("RANK", "0")) == 0:
         if a.export:
-            res["exported_bytes"] = export_weights(res["out"], a.export, kind)
+            res["exported_bytes"] = export_weights(res["out"], a.export, kind,
+                                                   getattr(a, "bank_per_text", 0), a.seed)
             res["exported"] = a.export
         print(json.dumps(res, indent=1))
     return 0

@@ -240,14 +240,45 @@ def train_prior(args: RunArgs) -> dict:
     return {**res, "out": str(out / "ckpt.pt"), "train_parts": len(train)}
 
 
-def export_weights(src: str | os.PathLike, dst: str | os.PathLike, kind: str) -> int:
-    """Strip a training checkpoint (no optimizer) and store fp16 weights. -> bytes written."""
+def thin_bank(prior, bank: dict, per_text: int, seed: int = 0) -> dict:
+    """The retrieval bank cut to at most ``per_text`` latents of each label text (a seeded
+    random draw, so retrieval sees the label's spread as sampled), with every label's empirical
+    code logits computed first from the whole bank (``label_logits``, (T, K, N) log P) so that
+    sampling by label is unchanged. ``prior``: the ShapePrior the bank was encoded for."""
+    lat, tid = bank["latents"], bank["text_ids"]
+    gen = torch.Generator().manual_seed(seed)
+    logits, keep = [], []
+    for t in range(len(bank["texts"])):
+        idx = (tid == t).nonzero()[:, 0]
+        if len(idx):
+            P = prior.code_distribution(lat[idx].float()).mean(0)
+        else:
+            P = torch.full((prior.cfg.n_codebooks, prior.cfg.codebook_size),
+                           1.0 / prior.cfg.codebook_size)
+        logits.append(P.clamp_min(1e-8).log())
+        keep.append(idx[torch.randperm(len(idx), generator=gen)[:per_text]])
+    keep = torch.cat(keep).sort().values
+    out = {**bank, "latents": lat[keep], "text_ids": tid[keep],
+           "label_logits": torch.stack(logits), "full_size": len(lat), "per_text": per_text}
+    for k in ("object_ids", "part_index"):
+        if k in bank:
+            out[k] = [bank[k][i] for i in keep.tolist()]
+    return out
+
+
+def export_weights(src: str | os.PathLike, dst: str | os.PathLike, kind: str,
+                   bank_per_text: int = 0, seed: int = 0) -> int:
+    """Strip a training checkpoint (no optimizer) and store fp16 weights; a prior's retrieval
+    bank is thinned to ``bank_per_text`` latents per label (0 = all). -> bytes written."""
     model, ckpt = load_checkpoint(src, kind)
+    extra = dict(ckpt.get("extra") or {})
+    if kind == "prior" and bank_per_text > 0 and extra.get("bank"):
+        extra["bank"] = thin_bank(model, extra["bank"], bank_per_text, seed)
     save_checkpoint(dst, kind, model, data_version=ckpt["data_version"], seed=ckpt["seed"],
-                    command=ckpt["command"], step=ckpt["step"], extra=ckpt.get("extra"),
+                    command=ckpt["command"], step=ckpt["step"], extra=extra,
                     device=ckpt.get("device", "cpu"), half=True)
     return os.path.getsize(dst)
 
 
-__all__ = ["RunArgs", "train_sdf", "train_prior", "encode_parts", "export_weights",
+__all__ = ["RunArgs", "train_sdf", "train_prior", "encode_parts", "export_weights", "thin_bank",
            "CheckpointError", "read_checkpoint"]
