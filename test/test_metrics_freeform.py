@@ -227,6 +227,25 @@ def test_generated_structure_without_geometry_fails_spatial_facts():
     assert r.aligned and r.spatial_ok is False
 
 
+def test_people_words_are_checked_in_the_category_part_names():
+    # a dresser's "knobs" are its handles, a safe's "knob" its dial (the dataset's labels)
+    dresser = GeneratedStructure.from_labels("StorageFurniture", ["body"] + ["drawer"] * 8
+                                             + ["handle"] * 8, ["fixed"] + ["prismatic"] * 8
+                                             + ["fixed"] * 8)
+    r = check_alignment(ExpectedStructure.from_line("StorageFurniture drawer=8 knob=8"), dresser)
+    assert r.aligned and not r.failures
+    r = check_alignment(ExpectedStructure.from_line("StorageFurniture drawer=8 knob=7"), dresser)
+    assert not r.aligned and r.failures == ["handle: 8 != 7"]
+    safe = GeneratedStructure.from_labels("Safe", ["body", "door", "dial", "dial"],
+                                          ["fixed", "revolute", "continuous", "revolute"])
+    line = "Safe door=1 knob=2 knob:continuous/revolute"
+    assert check_alignment(ExpectedStructure.from_line(line), safe).aligned
+    # an oven has knobs of its own: its "knobs" stay knobs
+    oven = GeneratedStructure.from_labels("Oven", ["body", "door", "dial"],
+                                          ["fixed", "revolute", "continuous"])
+    assert not check_alignment(ExpectedStructure.from_line("Oven door=1 knob=1"), oven).aligned
+
+
 # --- the breakdown -----------------------------------------------------------------------------
 def test_breakdown_by_category_and_part_count():
     assert [part_bucket(n) for n in (0, 1, 3, 4, 7, 8, 20)] == \

@@ -103,6 +103,10 @@ def check_spatial(expected: ExpectedStructure, got: GeneratedStructure) -> tuple
 
 
 def check_alignment(expected: ExpectedStructure, got: GeneratedStructure) -> AlignmentResult:
+    """Every check the prompt asks for, in the part names of the category asked for (a
+    cabinet's "knobs" are its handles, a safe's "knob" its dial: the dataset's labels)."""
+    from model.pipeline.prompt_structure import in_category_names
+    expected = in_category_names(expected, expected.category)
     fails: list[str] = []
     cat_ok = None
     if expected.category:

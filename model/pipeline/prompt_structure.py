@@ -125,6 +125,37 @@ def spatial_for(spatial: Optional[dict], category: str) -> Optional[dict]:
     return out
 
 
+def in_category_names(expected, category: Optional[str]):
+    """A parsed or annotated structure (``ExpectedStructure``) with its part words in
+    ``category``'s part names (CATEGORY_SYNONYMS, where the category has no part of that
+    name): what a "dresser with eight knobs" asks of a storage cabinet is eight handles.
+    The structure itself when the category is unknown or nothing is renamed."""
+    from dataclasses import replace
+
+    from model.articulation.structure_control import STRUCTURE_GRAMMAR
+
+    have = set(STRUCTURE_GRAMMAR.get(category or "", ()))
+    stated = set(expected.counts) | set(expected.min_counts) | set(expected.joint_types) \
+        | set(expected.spatial)
+    if not have or all(_own_label(category, lab, have) == lab for lab in stated):
+        return expected
+
+    def summed(table: dict) -> dict:
+        out: dict[str, int] = {}
+        for lab, n in table.items():
+            mine = _own_label(category, lab, have)
+            out[mine] = out.get(mine, 0) + int(n)
+        return out
+
+    joints: dict[str, list] = {}
+    for lab, types in expected.joint_types.items():
+        mine = _own_label(category, lab, have)
+        joints[mine] = [t for t in joints[mine] if t in types] if mine in joints else list(types)
+    return replace(expected, counts=summed(expected.counts),
+                   min_counts=summed(expected.min_counts), joint_types=joints,
+                   spatial=spatial_for(expected.spatial, category) or {})
+
+
 OPENS_TO_HINGE = {"down": "bottom", "up": "top"}
 
 
