@@ -47,8 +47,10 @@ done
 mkdir -p "$RUNS"
 source scripts/recipe_lib.sh
 
+# --minutes 0: no wall-clock budget (the small preset's 24 minutes would end the run and
+# anneal its learning rate by time); the schedule follows the steps alone
 common=(--prior "$PRIOR" --sdf "$SDF" --lr 5e-4 --own-inputs 0.5 --token-frame "$FRAME"
-        --art-modes "$MODES")
+        --art-modes "$MODES" --minutes 0)
 
 stage_text() {
   train_chunks transformer "$TEXT_RUN" "$TEXT_STEPS" "${common[@]}"
@@ -82,7 +84,7 @@ stage_render() {
 
 stage_image() {
   local img=(--renders "$RENDERS" --init "$RUNS/transformer_$PRESET.pt" --prior "$PRIOR"
-             --sdf "$SDF" --lr 2e-4 --warmup 100 --own-inputs 0.5)
+             --sdf "$SDF" --lr 2e-4 --warmup 100 --own-inputs 0.5 --minutes 0)
   train_chunks image "$IMAGE_RUN" "$IMAGE_STEPS" "${img[@]}"
   artformer train image --data "$DATA" --preset "$PRESET" --out "$IMAGE_RUN" --seed "$SEED" \
     --threads "$THREADS" --steps "$IMAGE_STEPS" --no-progress --resume "${img[@]}" \
