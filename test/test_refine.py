@@ -186,7 +186,8 @@ def _small_fronts() -> ArticulatedObject:
 
 def test_storage_fronts_grow_to_tile_their_face():
     from model.refine.layout import GAP
-    from model.refine.siblings import FRAME
+    from model.refine.siblings import FILL_FRAME
+    FRAME = FILL_FRAME["StorageFurniture"][0]
     obj = _small_fronts()
     before = {p.name: p.bbox_size.copy() for p in obj.parts}
     low = min(p.bbox_center[2] - p.bbox_size[2] / 2 for p in obj.parts[1:5])
@@ -217,10 +218,72 @@ def test_storage_fronts_grow_to_tile_their_face():
                                                  abs=0.02)
 
 
-def test_fronts_of_other_categories_are_not_grown():
+def test_a_safe_door_grows_around_its_dial():
+    """A safe's door decoded small grows to the safe's frame; the dial on it stays where it
+    was (a dial stated "in the middle" stays there), still on the door."""
+    from model.refine.siblings import FILL_FRAME
+    frame = FILL_FRAME["Safe"][0]
+    obj = ArticulatedObject(category="Safe", name="safe", parts=[
+        _part("body_0", "body", -1, (0.5, 0.6, 0.6), (0, 0, 0.3)),
+        _part("door_0", "door", 0, (0.04, 0.3, 0.3), (0.27, 0.1, 0.3),
+              Joint(JointType.REVOLUTE, (0.25, -0.05, 0.3), (0, 0, 1), r_range=(0, 1.6))),
+        _part("dial_0", "dial", 1, (0.02, 0.06, 0.06), (0.3, 0.0, 0.3),
+              Joint(JointType.CONTINUOUS, (0.3, 0.0, 0.3), (1, 0, 0)))])
+    refine_layout(obj)
+    door, dial = obj.parts[1], obj.parts[2]
+    lo, hi = door.bbox_center - door.bbox_size / 2, door.bbox_center + door.bbox_size / 2
+    assert np.allclose([lo[1], lo[2], hi[1], hi[2]], [-0.3 + frame, frame, 0.3 - frame,
+                                                      0.6 - frame])
+    assert np.allclose(dial.bbox_center[1:], (0.0, 0.3), atol=1e-6)
+
+
+def test_washer_doors_are_not_grown():
     obj = _small_fronts()
-    obj.category = "Oven"
+    obj.category = "WashingMachine"
     assert refine_layout(obj).get("filled", 0) == 0
+
+
+def _corner_oven() -> ArticulatedObject:
+    """A decoded-like toaster oven: a small drop-down door in the front's upper left, two
+    knobs on the panel above it and a dial to its right, the rest of the front open."""
+    def knob(name, label, y, z):
+        return _part(name, label, 0, (0.03, 0.06, 0.06), (0.265, y, z),
+                     Joint(JointType.CONTINUOUS, (0.25, y, z), (1, 0, 0)))
+    return ArticulatedObject(category="Oven", name="oven", parts=[
+        _part("body_0", "body", -1, (0.5, 0.8, 0.6), (0, 0, 0.3)),
+        _part("door_0", "door", 0, (0.03, 0.35, 0.25), (0.265, -0.15, 0.35),
+              Joint(JointType.REVOLUTE, (0.25, -0.15, 0.225), (0, 1, 0), r_range=(0, 1.5))),
+        knob("knob_0", "knob", -0.25, 0.55), knob("knob_1", "knob", -0.1, 0.55),
+        knob("dial_0", "dial", 0.3, 0.3),
+    ])
+
+
+def test_oven_door_fills_its_front_and_stays_clear_of_the_controls():
+    from model.refine.layout import CLEAR
+    from model.refine.siblings import FILL_FRAME
+    frame = FILL_FRAME["Oven"][0]
+    obj = _corner_oven()
+    controls = [p.bbox_center.copy() for p in obj.parts[2:]]
+    rep = refine_layout(obj)
+    door = obj.parts[1]
+    lo, hi = door.bbox_center - door.bbox_size / 2, door.bbox_center + door.bbox_size / 2
+    assert rep["filled"] == 1 and _structure(obj) == _structure(_corner_oven())
+    assert lo[1] == pytest.approx(-0.4 + frame) and lo[2] == pytest.approx(frame)
+    assert hi[2] == pytest.approx(0.52 - CLEAR)          # below the knobs on the panel
+    assert hi[1] == pytest.approx(0.27 - CLEAR)          # left of the dial beside it
+    for p, c in zip(obj.parts[2:], controls):           # the controls stay where they were
+        assert np.allclose(p.bbox_center[1:], c[1:]) and not _boxes_overlap(p, door)
+    assert door.joint.origin[2] == pytest.approx(lo[2], abs=0.02)   # hinged at its bottom
+    # "a door on the left": the door grows, but its centre stays on the left
+    from model.data.spatial import part_position
+    obj = _corner_oven()
+    obj.parts.pop(4)                                     # no dial beside it to stop at
+    refine_layout(obj, stated={"door": {"hpos": ["left"]}})
+    assert part_position(obj, 1)[0] == "left" and obj.parts[1].bbox_size[2] > 0.4
+    obj = _corner_oven()
+    obj.parts.pop(4)
+    refine_layout(obj)                                   # nothing stated: the whole width
+    assert part_position(obj, 1)[0] == "middle"
 
 
 def test_part_resolution_follows_metric_size():

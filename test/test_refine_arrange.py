@@ -34,7 +34,7 @@ def _layout(obj, prompt):
     """What Generator.layout does with a prompt's facts."""
     facts = parse_prompt(prompt).spatial
     arrange_stated(obj, facts)
-    refine_layout(obj)
+    refine_layout(obj, stated=facts)
     place_stated_sides(obj, facts)
     return obj
 
@@ -258,17 +258,39 @@ def _range(knobs):
 
 def test_knobs_stated_above_a_drop_down_door_go_above_it_and_the_door_stays():
     """Two rows of three knobs decoded down across the door: they move into the strip above
-    it, round, as rows; the door keeps its place and size."""
+    it, round, as rows; the door keeps its width and its top (it only fills down to the
+    oven's bottom frame)."""
     obj = _range([(0.29, y, z) for z in (0.7, 0.45) for y in (-0.2, 0.0, 0.2)])
     door = (obj.parts[1].bbox_center.copy(), obj.parts[1].bbox_size.copy())
     _layout(obj, "range with two rows of three knobs above the oven door")
     sp = spatial_summary(obj)
     assert is_above(sp, "knob", "door")
     assert (sp["knob"]["layout"], sp["knob"]["rows"], sp["knob"]["columns"]) == ("grid", 2, 3)
-    assert np.allclose(obj.parts[1].bbox_center[1:], door[0][1:], atol=0.01)
-    assert np.allclose(obj.parts[1].bbox_size[1:], door[1][1:], atol=0.03)   # not banded
+    d = obj.parts[1]
+    assert d.bbox_center[1] == pytest.approx(door[0][1], abs=0.01)
+    assert d.bbox_size[1] == pytest.approx(door[1][1], abs=0.03)               # not banded
+    top = d.bbox_center[2] + d.bbox_size[2] / 2
+    assert top == pytest.approx(door[0][2] + door[1][2] / 2, abs=0.01)
+    assert d.bbox_center[2] - d.bbox_size[2] / 2 <= door[0][2] - door[1][2] / 2 + 1e-6
     for p in obj.parts[2:]:
         assert p.bbox_size[1] == pytest.approx(p.bbox_size[2])
+
+
+def test_knobs_and_a_door_stated_on_opposite_sides_stand_side_by_side():
+    """"door on the right, three knobs on the left", the knobs decoded in a row above a wide
+    door: they become a column on the left, at their own size, as on a toaster oven; the
+    door takes the right of the front and fills its height."""
+    obj = _range([(0.29, y, 0.7) for y in (-0.2, 0.0, 0.2)])
+    _layout(obj, "a countertop oven, door on the right side, three knobs on the left")
+    door, knobs = obj.parts[1], obj.parts[2:]
+    assert part_position(obj, 1)[0] == "right"
+    assert {part_position(obj, i)[0] for i in range(2, 5)} == {"left"}
+    assert np.ptp([k.bbox_center[1] for k in knobs]) < 1e-6           # one column
+    assert np.ptp([k.bbox_center[2] for k in knobs]) > 0.1
+    for k in knobs:
+        assert np.allclose(k.bbox_size[1:], 0.05) and k.bbox_center[1] + 0.025 < \
+            door.bbox_center[1] - door.bbox_size[1] / 2
+    assert door.bbox_size[2] > 0.6
 
 
 def test_knobs_stated_on_the_left_leave_the_door_its_width():

@@ -257,7 +257,7 @@ class Generator:
         stated = tree.spatial if self.config.prompt_structure else None
         if stated:
             report["arranged"] = arrange_stated(obj, stated)
-        report["layout"] = refine_layout(obj)
+        report["layout"] = refine_layout(obj, stated=stated)
         if stated:
             report["arranged"] += place_stated_sides(obj, stated)
         _keep_hinge_sides(obj, tree.hinges)

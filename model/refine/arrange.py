@@ -30,7 +30,7 @@ import numpy as np
 
 from model.core import ArticulatedObject
 
-from .layout import (ON_FACE, PANELS, SIDE_HINGED, _lohi, _move_subtree, _union, face_of,
+from .layout import (CLEAR, ON_FACE, PANELS, SIDE_HINGED, _lohi, _move_subtree, _union, face_of,
                      frame_of)
 
 GAP_SHARE = 0.06       # of a cell's side, between neighbouring cells
@@ -142,13 +142,18 @@ def _stated_bands(obj: ArticulatedObject, label: str, spatial: dict) -> list[tup
     if label not in BANDED:
         # controls on a side are banded against the panels they sit beside (a toaster
         # oven's dials right of its door), not against those stated above or below controls
-        # (a washer's door below its dial and buttons) or below them on the face (a range's)
+        # (a washer's door below its dial and buttons) or below them on the face (a range's),
+        # unless the prompt puts the panel on the other side ("door on the right, knobs on
+        # the left")
         glo, ghi = _cspan(obj, group, V)
         over = _vertical(facts) | {lab for lab, f in spatial.items()
                                    if _vertical(f) & set(ON_FACE)}
         spans = {c: _cspan(obj, [c], V) for c in rest}
+        other = {"left": "right", "right": "left"}.get(_one(facts.get("hpos")))
         rest = [c for c in rest if obj.parts[c].label not in over
-                and min(ghi, spans[c][1]) - max(glo, spans[c][0]) > 0.5 * (ghi - glo)]
+                and (min(ghi, spans[c][1]) - max(glo, spans[c][0]) > 0.5 * (ghi - glo)
+                     or (other and _one((spatial.get(obj.parts[c].label) or {}).get("hpos"))
+                         == other))]
     for key, ax, low_word in (("vpos", V, "bottom"), ("hpos", H, "left")):
         want = facts.get(key) or []
         if rest and len(want) == 1 and want[0] in SIDES[ax]:
@@ -199,6 +204,50 @@ def _turned_to_front(obj: ArticulatedObject, label: str) -> Optional[list[int]]:
     return idx
 
 
+PITCH = 1.6       # sizes between the centres of neighbouring controls drawn together
+
+
+def _compact(obj: ArticulatedObject, group: list[int], ax: int) -> None:
+    """Controls spread along ``ax`` drawn together about their middle, to ``PITCH`` of their
+    size between neighbouring columns (rows and columns kept)."""
+    c = np.array([obj.parts[i].bbox_center[ax] for i in group])
+    size = max(obj.parts[i].bbox_size[ax] for i in group)
+    cols = np.unique(np.round(c / max(size / 2, 1e-6)))
+    if len(cols) < 2 or np.ptp(c) <= PITCH * size * (len(cols) - 1):
+        return
+    f = PITCH * size * (len(cols) - 1) / np.ptp(c)
+    mid = (c.min() + c.max()) / 2
+    for i, ci in zip(group, c):
+        p = obj.parts[i]
+        centre = p.bbox_center.copy()
+        centre[ax] = mid + (ci - mid) * f
+        _place(obj, i, centre, p.bbox_size.copy())
+
+
+def _stack(obj: ArticulatedObject, group: list[int], panel: list[int]) -> None:
+    """A single row of controls turned into a column at its own middle, from the top of the
+    panel beside it down, ``PITCH`` of their size apart."""
+    if len(group) < 2:
+        return
+    zs = [obj.parts[i].bbox_center[V] for i in group]
+    size = max(max(obj.parts[i].bbox_size[V], obj.parts[i].bbox_size[H]) for i in group)
+    if np.ptp(zs) > size:
+        return                                  # already more than one row
+    top = _cspan(obj, panel, V)[1] - size / 2
+    y = float(np.mean([obj.parts[i].bbox_center[H] for i in group]))
+    order = sorted(group, key=lambda i: obj.parts[i].bbox_center[H])
+    for n, i in enumerate(order):
+        p = obj.parts[i]
+        centre = p.bbox_center.copy()
+        centre[H], centre[V] = y, top - n * PITCH * size
+        _place(obj, i, centre, p.bbox_size.copy())
+
+
+def _one(values) -> Optional[str]:
+    """The single value of a stated fact, or None (none or several)."""
+    return values[0] if values and len(values) == 1 else None
+
+
 def _vertical(facts: dict) -> set:
     """The labels ``facts`` put above or below their group."""
     return set((facts.get("above") or []) + (facts.get("below") or []))
@@ -233,23 +282,62 @@ def _bands(obj: ArticulatedObject, low: list[int], high: list[int], ax: int,
         plo, phi = _cspan(obj, [obj.parts[low[0]].parent], V)   # "at the bottom" below two
         frame = frame_of(phi - plo)                              # drawers reaches down
         lo, hi = min(lo, plo + frame), max(hi, phi - frame)
-    scale = (hi - lo) / max((ahi - alo) + (bhi - blo), 1e-9)
+    ctrl = [g for g in (low, high) if not any(obj.parts[i].label in BANDED for i in g)]
+    if len(ctrl) == 1 and ax == H:   # controls beside a door: the two share the front's width
+        plo, phi = _cspan(obj, [obj.parts[low[0]].parent], H)
+        frame = frame_of(phi - plo)
+        lo, hi = min(lo, plo + frame), max(hi, phi - frame)
+    banded = _control_band(obj, ctrl[0], low, high, ax, lo, hi) if len(ctrl) == 1 else None
+    (alo, ahi), (blo, bhi) = _cspan(obj, low, ax), _cspan(obj, high, ax)
+    if banded is None:
+        scale = (hi - lo) / max((ahi - alo) + (bhi - blo), 1e-9)
+        banded = ({id(low): scale, id(high): scale}, {id(low): lo,
+                                                     id(high): hi - (bhi - blo) * scale})
+    scales, bases = banded
     cross = V if ax == H else H
     (c1, d1), (c2, d2) = _cspan(obj, low, cross), _cspan(obj, high, cross)
     clo, chi = min(c1, c2), max(d1, d2)
-    for g, glo, base in ((low, alo, lo), (high, blo, hi - (bhi - blo) * scale)):
+    for g, glo in ((low, alo), (high, blo)):
+        sc, base = scales[id(g)], bases[id(g)]
         glo2, ghi2 = _cspan(obj, g, cross)
         cscale = (chi - clo) / max(ghi2 - glo2, 1e-9)
         for i in g:
             p = obj.parts[i]
             centre, size = p.bbox_center.copy(), p.bbox_size.copy()
-            centre[ax] = base + (centre[ax] - glo) * scale
-            size[ax] *= scale
+            centre[ax] = base + (centre[ax] - glo) * sc
+            size[ax] *= sc
             if panels:
                 centre[cross] = clo + (centre[cross] - glo2) * cscale
                 size[cross] *= cscale
             _place(obj, i, centre, size)
     return True
+
+
+SIDE_BAND = 0.25   # of a face's width, the least a column of controls beside a door takes
+
+
+def _control_band(obj: ArticulatedObject, ctrl: list[int], low: list[int], high: list[int],
+                  ax: int, lo: float, hi: float) -> Optional[tuple[dict, dict]]:
+    """Controls banded beside a panel keep their size: a single row beside a door becomes a
+    column (a toaster oven's, ``_stack``), controls spread apart are drawn together, and
+    they take a band of their own span (beside a door: at least ``SIDE_BAND`` of the
+    extent), centred in it; the panel is scaled into the rest. -> ({id(group): scale},
+    {id(group): where its low edge goes}), or None where they would not fit."""
+    panel = high if ctrl is low else low
+    if ax == H:
+        _stack(obj, ctrl, panel)
+    _compact(obj, ctrl, ax)
+    (cl, ch), (pl, ph) = _cspan(obj, ctrl, ax), _cspan(obj, panel, ax)
+    span = ch - cl
+    band = max(span, SIDE_BAND * (hi - lo)) if ax == H else span
+    if band + CLEAR >= SQUEEZE * (hi - lo):
+        return None
+    ps = (hi - lo - band - CLEAR) / max(ph - pl, 1e-9)
+    if ctrl is low:
+        bases = {id(low): lo + (band - span) / 2, id(high): hi - (ph - pl) * ps}
+    else:
+        bases = {id(low): lo, id(high): hi - span - (band - span) / 2}
+    return {id(ctrl): 1.0, id(panel): ps}, bases
 
 
 def _above_drop_down(obj: ArticulatedObject, low: list[int], high: list[int]) -> bool:

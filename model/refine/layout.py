@@ -312,8 +312,10 @@ def _thicken(obj: ArticulatedObject) -> int:
     return n
 
 
-def refine_layout(obj: ArticulatedObject, config: Optional[LayoutConfig] = None) -> dict:
-    """Refine ``obj``'s boxes and joints in place (before meshing); returns what changed."""
+def refine_layout(obj: ArticulatedObject, config: Optional[LayoutConfig] = None,
+                  stated: Optional[dict] = None) -> dict:
+    """Refine ``obj``'s boxes and joints in place (before meshing); returns what changed.
+    ``stated``: the prompt's spatial facts (label -> facts), whose sides the fill keeps."""
     cfg = config or LayoutConfig()
     report = {"snapped": 0, "attached": 0, "aligned_groups": 0, "separated": 0, "joints": 0}
     if cfg.snap:
@@ -333,7 +335,7 @@ def refine_layout(obj: ArticulatedObject, config: Optional[LayoutConfig] = None)
             _attach(obj, i, face)
             report["attached"] += 1
     from .siblings import siblings          # (it imports this module's helpers)
-    siblings(obj, cfg, report)
+    siblings(obj, cfg, report, stated or {})
     if cfg.joints:
         for i in obj.movable_parts():
             face = face_of(obj, i)

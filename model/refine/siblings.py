@@ -3,11 +3,13 @@ steps 3-5): align repeated parts on rows and columns, space small ones, cut over
 siblings apart, keep knobs, dials and buttons clear of the panels beside them."""
 from __future__ import annotations
 
+from typing import Optional
+
 import numpy as np
 
 from model.core import ArticulatedObject
 
-from .layout import (CLEAR, GAP, MIN_KEEP, PANELS, SMALL, LayoutConfig, _attach, _lohi,
+from .layout import (CLEAR, GAP, MIN_KEEP, PANELS, SLIDERS, SMALL, LayoutConfig, _attach, _lohi,
                      _move_subtree, _set, _union, face_of)
 
 
@@ -320,46 +322,83 @@ def _separate_all(obj: ArticulatedObject, members: list[int], k: int) -> int:
 
 FRONTS = PANELS + ("drawer",)
 BEYOND = 0.1       # of the smaller front's side: an overlap that still leaves it beyond
-FRAME = 0.023      # m of carcass around a storage front (the data's median at the sides and top)
+# m of carcass left around the fronts a face's fill grows, per category, and whether the
+# bottom is held too (the data's medians, model/data/synth: a cabinet's sides and top, its
+# bottom varying with the plinth; an oven's walls around its door and drawer, the control
+# panel above them; a safe's walls). Washers keep their round doors as decoded.
+KEEP_SIDE = 0.25   # half-faces off the middle a front stated on one side keeps (the alignment
+                   # check's margin is 0.2, model.data.spatial.HPOS_MARGIN)
+FILL_FRAME = {"StorageFurniture": (0.023, False), "Oven": (0.03, True), "Safe": (0.05, True)}
 
 
-def _fill(obj: ArticulatedObject, parent: int, members: list[int], k: int) -> int:
-    """The doors and drawers on one face of a piece of storage furniture grow to tile it: a
-    decoded front often leaves drawers as small boxes in a wide empty face, where the data's
-    fronts cover 93 % (median) of the rectangle they span, and that rectangle reaches to
-    ``FRAME`` of the carcass's sides and top (its bottom varies with the plinth, so it stays
-    where the fronts put it). Vertical extents first, then horizontal; a part grows towards
-    a front wholly beyond it only to the middle of the gap between them (``GAP`` apart), so
-    every front above, below, left or right of another stays so; nothing shrinks. Children
-    move with their part's centre. -> the number of parts grown."""
+def _kept_side(stated: dict, label: str, d: int) -> Optional[float]:
+    """-1 / +1 when the prompt puts ``label`` on one side along axis ``d`` (y: "on the left" /
+    "on the right"; z: "at the bottom" / "on top"), else None."""
+    want = (stated.get(label) or {}).get("hpos" if d == 1 else "vpos") or []
+    sides = {"left": -1.0, "right": 1.0} if d == 1 else {"bottom": -1.0, "top": 1.0}
+    return sides.get(want[0]) if len(want) == 1 else None
+
+
+def _fill(obj: ArticulatedObject, parent: int, members: list[int], k: int,
+          stated: Optional[dict] = None) -> int:
+    """The doors and drawers on one face grow to tile it: a decoded front often leaves
+    drawers as small boxes in a wide empty face, or an oven's door in a corner of its
+    front, where the data's fronts cover 93 % (storage, median) of the rectangle they span,
+    and that rectangle reaches to the category's frame (``FILL_FRAME``) of the carcass.
+    Vertical extents first, then horizontal; a part grows towards a front wholly beyond it
+    only to the middle of the gap between them (``GAP`` apart), and towards another part on
+    its face (a knob, a dial; a tray the network put at the door's depth) only to ``CLEAR`` of
+    it, so every part above, below, left
+    or right of another stays so; nothing shrinks. A front the prompt puts on one side
+    (``stated``: "a door on the left") keeps its centre there, at least ``KEEP_SIDE`` of the
+    half-face off the middle. A drawer's children move with its centre; a door's stay where
+    they are (on the door, which only grew: a dial stated in the middle stays there).
+    -> the number of parts grown."""
+    frame, bottom = FILL_FRAME[obj.category]
     fronts = [i for i in members if obj.parts[i].label in FRONTS]
+    fixed = [i for i in members if obj.parts[i].label not in FRONTS]
+    deep = {i for i in fixed if obj.parts[i].label not in SMALL}    # trays: in the way only
+                                                                    # at the front's depth
     if not fronts:
         return 0
     R0, R1 = _union([obj.parts[i] for i in fronts])
     P0, P1 = _lohi(obj.parts[parent])
     for d in range(3):
         if d != k:
-            R1[d] = max(R1[d], P1[d] - FRAME)
-            if d != 2:
-                R0[d] = min(R0[d], P0[d] + FRAME)
+            R1[d] = max(R1[d], P1[d] - frame)
+            if d != 2 or bottom:
+                R0[d] = min(R0[d], P0[d] + frame)
     start = {i: obj.parts[i].bbox_center.copy() for i in fronts}
     axes = sorted((d for d in range(3) if d != k), key=lambda d: d != 2)   # z first
     for d in axes:
-        box = {i: _lohi(obj.parts[i]) for i in fronts}
+        box = {i: _lohi(obj.parts[i]) for i in fronts + fixed}
         new = {}
         for i in fronts:
             lo, hi = box[i][0].copy(), box[i][1].copy()
             up, down = R1[d], R0[d]
-            for j in fronts:      # any front wholly beyond i along d stays beyond it, so
-                jl, jh = box[j]     # what is above, below, left or right of what keeps so
-                if j == i:          # (touching within a tenth of the smaller: beyond)
-                    continue
+            for j in fronts + fixed:   # any part wholly beyond i along d stays beyond it, so
+                jl, jh = box[j]         # what is above, below, left or right of what keeps so
+                if j == i or (j in deep and (jl[k] >= hi[k] or jh[k] <= lo[k])):
+                    continue            # itself, or a part at another depth (a tray inside)
+                # touching within a tenth of the smaller side still counts as beyond
                 tol = BEYOND * min(hi[d] - lo[d], jh[d] - jl[d]) + 1e-6
+                front = j in start          # a front: the middle of the gap; else CLEAR
                 if jl[d] >= hi[d] - tol:
-                    up = min(up, (hi[d] + jl[d]) / 2 - GAP / 2)
+                    up = min(up, (hi[d] + jl[d] - GAP) / 2 if front else jl[d] - CLEAR)
                 elif jh[d] <= lo[d] + tol:
-                    down = max(down, (lo[d] + jh[d]) / 2 + GAP / 2)
+                    down = max(down, (lo[d] + jh[d] + GAP) / 2 if front else jh[d] + CLEAR)
+            lo0, hi0 = lo[d], hi[d]
             lo[d], hi[d] = min(lo[d], down), max(hi[d], up)
+            side = _kept_side(stated or {}, obj.parts[i].label, d)
+            if side is not None:     # the centre stays off the middle on its stated side
+                mid, half = (P0[d] + P1[d]) / 2, (P1[d] - P0[d]) / 2
+                off = min(side * (start[i][d] - mid) / half, KEEP_SIDE)
+                if off > 0:
+                    edge = 2 * (mid + side * off * half)      # = lo + hi at the limit
+                    if side < 0:
+                        hi[d] = max(min(hi[d], edge - lo[d]), hi0)
+                    else:
+                        lo[d] = min(max(lo[d], edge - hi[d]), lo0)
             new[i] = (lo, hi)
         for i, (lo, hi) in new.items():
             _set(obj.parts[i], lo, hi)
@@ -368,12 +407,14 @@ def _fill(obj: ArticulatedObject, parent: int, members: list[int], k: int) -> in
         move = obj.parts[i].bbox_center - start[i]
         if np.abs(move).max() > 1e-6:
             grown += 1
-            for c in obj.children(i):
-                _move_subtree(obj, c, move)
+            if obj.parts[i].label in SLIDERS:      # a drawer's handle stays centred on it
+                for c in obj.children(i):
+                    _move_subtree(obj, c, move)
     return grown
 
 
-def siblings(obj: ArticulatedObject, cfg: LayoutConfig, report: dict) -> None:
+def siblings(obj: ArticulatedObject, cfg: LayoutConfig, report: dict,
+             stated: Optional[dict] = None) -> None:
     """Align repeated parts and cut overlapping siblings apart, parent by parent; children
     of a changed part are re-attached to it afterwards."""
     for par in obj.topological_order():
@@ -401,8 +442,9 @@ def siblings(obj: ArticulatedObject, cfg: LayoutConfig, report: dict) -> None:
             if cfg.separate:
                 report["separated"] += _separate_all(obj, members, k)
                 report["cleared"] = report.get("cleared", 0) + _clear_panels(obj, members, k)
-            if cfg.fill and obj.category == "StorageFurniture":
-                report["filled"] = report.get("filled", 0) + _fill(obj, par, members, k)
+            if cfg.fill and obj.category in FILL_FRAME:
+                report["filled"] = report.get("filled", 0) + _fill(obj, par, members, k,
+                                                                        stated or {})
             if cfg.heaps and k == 0:      # drawers and doors in rows of equal cells
                 heaped = {tuple(g) for g, _ in heaps}
                 for g in _groups(obj, members):
