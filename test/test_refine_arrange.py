@@ -293,6 +293,13 @@ def test_knobs_and_a_door_stated_on_opposite_sides_stand_side_by_side():
     assert door.bbox_size[2] > 0.6
 
 
+def test_a_stated_row_of_knobs_beside_a_door_stays_a_row():
+    obj = _range([(0.29, y, 0.7) for y in (-0.2, 0.0, 0.2)])
+    _layout(obj, "an oven with the door on the right and a row of three knobs on the left")
+    assert spatial_summary(obj)["knob"]["layout"] == "row"
+    assert part_position(obj, 1)[0] == "right"
+
+
 def test_knobs_stated_on_the_left_leave_the_door_its_width():
     """"four knobs in a line on the left": the knobs come together on the left of the front;
     the door below them is not banded beside them."""

@@ -54,11 +54,14 @@ def arrange_stated(obj: ArticulatedObject, spatial: Optional[dict]) -> list[str]
         if group is not None and _lay_out(obj, group, grid):
             grids.append(group)
             done.append(f"{label}: {len(grid)} x {max(grid)}")
+    laid = {lab for lab, f in (spatial or {}).items()          # a stated row stays a row
+            if any(f.get(k) for k in ("layout", "rows", "columns"))}
     for label, facts in (spatial or {}).items():
         banded = set()
         for low, high, ax, share in _stated_bands(obj, label, spatial):
             banded.add(ax)
-            if _bands(obj, low, high, ax, share):
+            stack = not {obj.parts[i].label for i in low + high} & laid
+            if _bands(obj, low, high, ax, share, stack):
                 a, b = obj.parts[high[0]].label, obj.parts[low[0]].label
                 done.append(f"{a} above {b}" if ax == V else f"{b} left of {a}")
         for key, ax in (("hpos", H), ("vpos", V)):
@@ -259,7 +262,7 @@ def _same_face(obj: ArticulatedObject, a: list[int], b: list[int]) -> bool:
 
 
 def _bands(obj: ArticulatedObject, low: list[int], high: list[int], ax: int,
-           share: bool = True) -> bool:
+           share: bool = True, stack: bool = True) -> bool:
     """Unless ``low`` already sits wholly below (V) or left of (H) ``high``: the span both
     groups cover along ``ax`` is split into a low and a high band as long as each group's
     own span (scaled to fill it), and each group is mapped into its band with its own
@@ -287,7 +290,8 @@ def _bands(obj: ArticulatedObject, low: list[int], high: list[int], ax: int,
         plo, phi = _cspan(obj, [obj.parts[low[0]].parent], H)
         frame = frame_of(phi - plo)
         lo, hi = min(lo, plo + frame), max(hi, phi - frame)
-    banded = _control_band(obj, ctrl[0], low, high, ax, lo, hi) if len(ctrl) == 1 else None
+    banded = _control_band(obj, ctrl[0], low, high, ax, lo, hi, stack) if len(ctrl) == 1 \
+        else None
     (alo, ahi), (blo, bhi) = _cspan(obj, low, ax), _cspan(obj, high, ax)
     if banded is None:
         scale = (hi - lo) / max((ahi - alo) + (bhi - blo), 1e-9)
@@ -317,14 +321,16 @@ SIDE_BAND = 0.25   # of a face's width, the least a column of controls beside a 
 
 
 def _control_band(obj: ArticulatedObject, ctrl: list[int], low: list[int], high: list[int],
-                  ax: int, lo: float, hi: float) -> Optional[tuple[dict, dict]]:
+                  ax: int, lo: float, hi: float, stack: bool = True
+                  ) -> Optional[tuple[dict, dict]]:
     """Controls banded beside a panel keep their size: a single row beside a door becomes a
-    column (a toaster oven's, ``_stack``), controls spread apart are drawn together, and
+    column (a toaster oven's, ``_stack``; not a row or grid the prompt states, ``stack``
+    False), controls spread apart are drawn together, and
     they take a band of their own span (beside a door: at least ``SIDE_BAND`` of the
     extent), centred in it; the panel is scaled into the rest. -> ({id(group): scale},
     {id(group): where its low edge goes}), or None where they would not fit."""
     panel = high if ctrl is low else low
-    if ax == H:
+    if ax == H and stack:
         _stack(obj, ctrl, panel)
     _compact(obj, ctrl, ax)
     (cl, ch), (pl, ph) = _cspan(obj, ctrl, ax), _cspan(obj, panel, ax)
