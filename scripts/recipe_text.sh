@@ -71,7 +71,24 @@ stage_text_eval() {   # validation only: the test split is scored once, for the 
   ln -sf "$(realpath "$PRIOR")" "$RUNS/candidate/prior_$PRESET.pt"
   artformer eval layout --data "$DATA" --split val --n 100 --checkpoint "$RUNS/candidate" \
     --out "$RUNS/layout_val.json"
-  record "$RUNS" "$(date -u +%FT%TZ) text-eval (val alignment, val layout): $(( $(date -u +%s) - t0 )) s wall"
+  # the shipped model on the same validation objects, to decide on
+  artformer train transformer --eval model/weights/transformer_$PRESET.pt --data "$DATA" \
+    --split val --temperature 0.3 --follow-plan --no-progress \
+    --json "$RUNS/text_alignment_val_shipped.json"
+  artformer eval layout --data "$DATA" --split val --n 100 --out "$RUNS/layout_val_shipped.json"
+  # what users see, candidate and shipped: the audit (raw and refined), free-form and dev
+  # prompts (the held-out prompts are scored once, for the model that ships)
+  local ck
+  for ck in candidate shipped; do
+    local opt=(); [ "$ck" = candidate ] && opt=(--checkpoint "$RUNS/candidate")
+    artformer eval audit --seeds 2 --rows raw,refined \
+      --freeform-file model/metrics/prompts_bench.txt --out "$RUNS/audit_$ck" "${opt[@]}"
+    for set in freeform dev; do
+      artformer eval --freeform-only --seeds 3 --freeform-file "model/metrics/prompts_$set.txt" \
+        --json "$RUNS/${set}_$ck.json" "${opt[@]}"
+    done
+  done
+  record "$RUNS" "$(date -u +%FT%TZ) text-eval (val alignment and layout, audit, free-form and dev prompts; candidate and shipped): $(( $(date -u +%s) - t0 )) s wall"
 }
 
 stage_render() {
