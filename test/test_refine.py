@@ -438,6 +438,53 @@ def test_a_runner_that_would_float_becomes_a_ledge_between_the_side_walls():
     assert float(mans[1].min_gap(mans[0], 0.01)) <= 1e-6
 
 
+def test_knobs_over_an_open_front_get_a_panel_behind_them():
+    """A toaster oven: its door on the left, two knobs on the right where the carcass is open.
+    The knobs get a plate of the body behind them, from the door's edge to the body's right
+    side; knobs already in front of a wall get none."""
+    from model.core import meshops
+    from model.refine.meshes import PANEL, add_control_panels
+    def knob(z):
+        return Joint(JointType.CONTINUOUS, (0.25, 0.2, z), (1, 0, 0))
+    obj = ArticulatedObject(category="Oven", name="toaster", parts=[
+        _part("body_0", "body", -1, (0.5, 0.6, 0.5), (0, 0, 0.25)),
+        _part("door_0", "door", 0, (0.03, 0.38, 0.46), (0.265, -0.09, 0.25),
+              Joint(JointType.REVOLUTE, (0.25, -0.28, 0.25), (0, 0, 1), r_range=(0, 1.5))),
+        _part("knob_0", "knob", 0, (0.03, 0.05, 0.05), (0.265, 0.2, 0.3), knob(0.3)),
+        _part("knob_1", "knob", 0, (0.03, 0.05, 0.05), (0.265, 0.2, 0.2), knob(0.2)),
+    ])
+    carcass = meshops.box((0.5, 0.6, 0.5), (0, 0, 0.25)) - meshops.box((0.5, 0.56, 0.46),
+                                                                         (0.03, 0, 0.25))
+    mans = {0: carcass}
+    for i in (1, 2, 3):
+        mans[i] = meshops.box(obj.parts[i].bbox_size, obj.parts[i].bbox_center)
+    assert add_control_panels(obj, mans) == ["knob_0", "knob_1"]
+    plate = mans[0] - carcass                   # the new material: the open front's right
+    lo, hi = np.asarray(plate.bounding_box()).reshape(2, 3)
+    assert np.allclose([lo[0], hi[0]], [0.25 - PANEL, 0.25])              # behind the face
+    assert np.allclose([lo[1], hi[1], lo[2], hi[2]], [0.1, 0.28, 0.02, 0.48])  # door to wall
+    assert float((mans[0] ^ mans[1]).volume()) < 1e-9                      # not into the door
+    assert add_control_panels(obj, mans) == []                            # backed now
+
+
+def test_a_rack_level_with_the_oven_door_goes_in_behind_it():
+    """A rack decoded with its front at the oven's face, where the door filling the front
+    now reaches: it moves into the cavity, GAP behind the door."""
+    from model.refine.layout import GAP
+    obj = ArticulatedObject(category="Oven", name="oven", parts=[
+        _part("body_0", "body", -1, (0.5, 0.6, 0.6), (0, 0, 0.3)),
+        _part("door_0", "door", 0, (0.03, 0.5, 0.25), (0.265, 0, 0.2),
+              Joint(JointType.REVOLUTE, (0.25, 0, 0.075), (0, 1, 0), r_range=(0, 1.5))),
+        _part("tray_0", "tray", 0, (0.3, 0.5, 0.01), (0.13, 0, 0.4),
+              Joint(JointType.PRISMATIC, (0.28, 0, 0.4), (1, 0, 0), t_range=(0, 0.25))),
+    ])
+    refine_layout(obj)
+    door, tray = obj.parts[1], obj.parts[2]
+    assert door.bbox_center[2] + door.bbox_size[2] / 2 > 0.45            # grown over the rack
+    assert tray.bbox_center[0] + tray.bbox_size[0] / 2 <= \
+        door.bbox_center[0] - door.bbox_size[0] / 2 - GAP + 1e-9
+
+
 def test_a_paper_thin_box_is_thickened_before_meshing():
     """A handle decoded 0.1 mm thick gets MIN_SIDE on that side (a sheet of it meshes into
     tens of thousands of faces no simplification keeps), a 12 cm cabinet door the thickest

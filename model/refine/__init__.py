@@ -30,6 +30,7 @@ class RefineConfig:
     floaters: bool = True          # drop specks and enclosed voids of every part
     carve: bool = True             # parents give way where a moving child passes
     runners: bool = True           # a detached drawer gets a slab of its parent to slide on
+    panels: bool = True            # controls with nothing behind them get a plate of it
     limits: bool = True            # a range ends where its sweep still collides
     vessels: bool = True           # a bottle stands on the hull of its body below the cap
     face_budget: int = 30000       # visual faces per object (0: keep every face)
@@ -50,6 +51,8 @@ def refine_meshes(obj: ArticulatedObject, config: Optional[RefineConfig] = None,
     # 15 % headroom: carving adds faces after simplifying
     mans, tol = _within_budget(obj, int(0.85 * cfg.face_budget), cfg.floaters, frozen, prepared)
     report: dict = {"simplify_tolerance": tol}
+    if cfg.panels and not frozen:
+        report["control_panels"] = M.add_control_panels(obj, mans)
     if cfg.carve:
         carved = M.carve_parents(obj, mans)
         for i, sweep in carved.items():

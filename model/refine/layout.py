@@ -36,6 +36,7 @@ SLIDERS = ("drawer", "tray")
 PANELS = ("door", "lid")
 ON_FACE = ("handle", "knob", "dial", "button")
 SMALL = ("knob", "dial", "button", "handle")
+FRONT_LABELS = PANELS + SLIDERS    # what closes an opening of a face
 GAP = 0.002            # m between separated siblings
 MIN_KEEP = 0.3         # a box keeps at least this share of its size when cut
 SIDE_HINGED = ("StorageFurniture", "Safe", "WashingMachine")   # their doors: vertical axes

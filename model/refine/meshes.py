@@ -243,6 +243,59 @@ def add_runners(obj: ArticulatedObject, mans: dict, max_gap: float = 0.005,
     return added
 
 
+CONTROLS = ("knob", "dial", "button")
+PANEL = 0.015      # m: depth of the plate put behind controls with nothing behind them
+BACKED = 0.3       # share of a control's footprint slab the parent must fill to hold it
+
+
+def add_control_panels(obj: ArticulatedObject, mans: dict, depth: float = PANEL) -> list[str]:
+    """Knobs, dials and buttons on a face of their parent with nothing of it behind them (a
+    toaster oven's knobs beside its door, over a front the shape prior left open) get a
+    plate of the parent behind them, as an appliance's control panel is: the rectangle their
+    footprints cover, grown in the face plane to the parent's outline and up to any door,
+    drawer or lid on that face, ``depth`` deep behind the face, less what other parts
+    occupy. Runs before carving (buttons get their pockets from it). Returns the controls
+    that were floating."""
+    from .layout import FRONT_LABELS, _lohi, face_of
+    mf = meshops._mf()
+    floating: dict[tuple, list[int]] = {}
+    for c, p in enumerate(obj.parts):
+        face = face_of(obj, c)
+        if p.label not in CONTROLS or face is None or c not in mans or p.parent not in mans:
+            continue
+        k, s = face
+        plo, phi = np.asarray(mans[p.parent].bounding_box()).reshape(2, 3)
+        plane = phi[k] if s > 0 else plo[k]
+        lo, hi = _lohi(p)
+        lo[k], hi[k] = sorted((plane, plane - s * depth))
+        probe = meshops.box(hi - lo, (lo + hi) / 2)
+        if float((mans[p.parent] ^ probe).volume()) < BACKED * float(probe.volume()):
+            floating.setdefault((p.parent, k, s), []).append(c)
+    for (par, k, s), group in floating.items():
+        plo, phi = np.asarray(mans[par].bounding_box()).reshape(2, 3)
+        boxes = [_lohi(obj.parts[c]) for c in group]
+        lo, hi = np.min([b[0] for b in boxes], 0), np.max([b[1] for b in boxes], 0)
+        fronts = [_lohi(obj.parts[f]) for f in obj.children(par)
+                  if obj.parts[f].label in FRONT_LABELS and face_of(obj, f) == (k, s)]
+        for d in (d for d in range(3) if d != k):     # grow to the outline or to a front
+            up, down = phi[d], plo[d]
+            for flo, fhi in fronts:
+                if flo[d] >= hi[d] - 1e-6:
+                    up = min(up, flo[d])
+                elif fhi[d] <= lo[d] + 1e-6:
+                    down = max(down, fhi[d])
+            lo[d], hi[d] = min(lo[d], down), max(hi[d], up)
+        plane = phi[k] if s > 0 else plo[k]
+        lo[k], hi[k] = sorted((plane, plane - s * depth))
+        slab = meshops.box(hi - lo, (lo + hi) / 2)
+        others = [m for i, m in mans.items() if i != par and i not in group]
+        if others:
+            slab = mf.Manifold.batch_boolean([slab, *others], mf.OpType.Subtract)
+        if not slab.is_empty():
+            mans[par] = mf.Manifold.batch_boolean([mans[par], slab], mf.OpType.Add)
+    return sorted(obj.parts[c].name for g in floating.values() for c in g)
+
+
 def round_collision(obj: ArticulatedObject, mans: dict, solid: float = 0.7) -> list[str]:
     """Knobs and dials collide as the convex hull of their mesh when it is nearly convex:
     box pieces fitted to a round part sweep their corners beyond the part when it turns (a

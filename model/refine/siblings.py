@@ -339,6 +339,23 @@ def _kept_side(stated: dict, label: str, d: int) -> Optional[float]:
     return sides.get(want[0]) if len(want) == 1 else None
 
 
+def _recess(obj: ArticulatedObject, parent: int, fronts: list[int], deep: list[int],
+            k: int) -> None:
+    """A tray the network put at the depth of a front that now covers it (an oven rack level
+    with the door) moves back into its parent, ``GAP`` behind the front, as the data's racks
+    sit in the cavity behind the door."""
+    pc = obj.parts[parent].bbox_center[k]
+    for j in deep:
+        for i in fronts:
+            (lo, hi), (jl, jh) = _lohi(obj.parts[i]), _lohi(obj.parts[j])
+            if not np.all((jl < hi - 1e-6) & (lo < jh - 1e-6)):
+                continue
+            s = 1.0 if obj.parts[i].bbox_center[k] >= pc else -1.0
+            move = np.zeros(3)
+            move[k] = (lo[k] - GAP - jh[k]) if s > 0 else (hi[k] + GAP - jl[k])
+            _move_subtree(obj, j, move)
+
+
 def _fill(obj: ArticulatedObject, parent: int, members: list[int], k: int,
           stated: Optional[dict] = None) -> int:
     """The doors and drawers on one face grow to tile it: a decoded front often leaves
@@ -347,8 +364,8 @@ def _fill(obj: ArticulatedObject, parent: int, members: list[int], k: int,
     and that rectangle reaches to the category's frame (``FILL_FRAME``) of the carcass.
     Vertical extents first, then horizontal; a part grows towards a front wholly beyond it
     only to the middle of the gap between them (``GAP`` apart), and towards another part on
-    its face (a knob, a dial; a tray the network put at the door's depth) only to ``CLEAR`` of
-    it, so every part above, below, left
+    its face (a knob, a dial) only to ``CLEAR`` of it (a tray it covers is recessed behind it,
+    ``_recess``), so every part above, below, left
     or right of another stays so; nothing shrinks. A front the prompt puts on one side
     (``stated``: "a door on the left") keeps its centre there, at least ``KEEP_SIDE`` of the
     half-face off the middle. A drawer's children move with its centre; a door's stay where
@@ -356,9 +373,8 @@ def _fill(obj: ArticulatedObject, parent: int, members: list[int], k: int,
     -> the number of parts grown."""
     frame, bottom = FILL_FRAME[obj.category]
     fronts = [i for i in members if obj.parts[i].label in FRONTS]
-    fixed = [i for i in members if obj.parts[i].label not in FRONTS]
-    deep = {i for i in fixed if obj.parts[i].label not in SMALL}    # trays: in the way only
-                                                                    # at the front's depth
+    fixed = [i for i in members if obj.parts[i].label in SMALL]
+    deep = [i for i in members if obj.parts[i].label not in FRONTS + SMALL]   # trays
     if not fronts:
         return 0
     R0, R1 = _union([obj.parts[i] for i in fronts])
@@ -378,8 +394,8 @@ def _fill(obj: ArticulatedObject, parent: int, members: list[int], k: int,
             up, down = R1[d], R0[d]
             for j in fronts + fixed:   # any part wholly beyond i along d stays beyond it, so
                 jl, jh = box[j]         # what is above, below, left or right of what keeps so
-                if j == i or (j in deep and (jl[k] >= hi[k] or jh[k] <= lo[k])):
-                    continue            # itself, or a part at another depth (a tray inside)
+                if j == i:
+                    continue
                 # touching within a tenth of the smaller side still counts as beyond
                 tol = BEYOND * min(hi[d] - lo[d], jh[d] - jl[d]) + 1e-6
                 front = j in start          # a front: the middle of the gap; else CLEAR
@@ -402,6 +418,7 @@ def _fill(obj: ArticulatedObject, parent: int, members: list[int], k: int,
             new[i] = (lo, hi)
         for i, (lo, hi) in new.items():
             _set(obj.parts[i], lo, hi)
+    _recess(obj, parent, fronts, deep, k)
     grown = 0
     for i in fronts:
         move = obj.parts[i].bbox_center - start[i]
