@@ -8,8 +8,8 @@
 #   STAGE=sdf bash scripts/recipe_geometry.sh    # one stage: data | cache | sdf | prior | eval | export
 #
 # Settings (environment variables, defaults below): N_OBJECTS, SEED, VERSION, PRESET,
-# SDF_STEPS, PRIOR_STEPS, THREADS, BANK_PER_TEXT, CHUNK_MIN, RUNS. Each run folder gets RECIPE.md with the
-# command lines, seed, data version, device and wall times of every chunk.
+# SDF_STEPS, PRIOR_STEPS, THREADS, BANK_PER_TEXT, CHUNK_MIN, RUNS. Each run folder gets
+# RECIPE.md with the command lines, seed, data version, device and wall times of every chunk.
 #
 # Why these settings: docs/geometry.md, "How good it is". Estimated wall time on 2 CPU
 # cores: in the RECIPE block of docs/geometry.md.

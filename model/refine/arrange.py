@@ -268,9 +268,10 @@ def _bands(obj: ArticulatedObject, low: list[int], high: list[int], ax: int,
     own span (scaled to fill it), and each group is mapped into its band with its own
     layout (relative places and sizes) kept; groups of panels (drawers, doors...) are also
     stretched across the extent both cover on the other axis (``share``), and fill their
-    face's height when one is above the other. Not top to bottom on a face
-    where a panel turns about a horizontal axis (an oven's drop-down door stays at the
-    bottom)."""
+    face's height when one is above the other. Controls banded beside a panel keep their
+    size instead, and beside a door the two share the face's width (``_control_band``). Not
+    top to bottom on a face where a panel turns about a horizontal axis (an oven's
+    drop-down door stays at the bottom)."""
     (alo, ahi), (blo, bhi) = _cspan(obj, low, ax), _cspan(obj, high, ax)
     if ahi < blo + 0.01:
         return False
@@ -324,11 +325,11 @@ def _control_band(obj: ArticulatedObject, ctrl: list[int], low: list[int], high:
                   ax: int, lo: float, hi: float, stack: bool = True
                   ) -> Optional[tuple[dict, dict]]:
     """Controls banded beside a panel keep their size: a single row beside a door becomes a
-    column (a toaster oven's, ``_stack``; not a row or grid the prompt states, ``stack``
-    False), controls spread apart are drawn together, and
-    they take a band of their own span (beside a door: at least ``SIDE_BAND`` of the
-    extent), centred in it; the panel is scaled into the rest. -> ({id(group): scale},
-    {id(group): where its low edge goes}), or None where they would not fit."""
+    column (a toaster oven's, ``_stack``; not a row or grid the prompt states: ``stack``
+    False), controls spread apart are drawn together, and they take a band of their own
+    span (beside a door: at least ``SIDE_BAND`` of the extent), centred in it; the panel is
+    scaled into the rest. -> ({id(group): scale}, {id(group): where its low edge goes}), or
+    None where they would not fit."""
     panel = high if ctrl is low else low
     if ax == H and stack:
         _stack(obj, ctrl, panel)

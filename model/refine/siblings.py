@@ -9,8 +9,8 @@ import numpy as np
 
 from model.core import ArticulatedObject
 
-from .layout import (CLEAR, GAP, MIN_KEEP, PANELS, SLIDERS, SMALL, LayoutConfig, _attach, _lohi,
-                     _move_subtree, _set, _union, face_of)
+from .layout import (CLEAR, GAP, MIN_KEEP, PANELS, SLIDERS, SMALL, LayoutConfig, _attach,
+                     _lohi, _move_subtree, _set, _union, face_of)
 
 
 def _clusters(values: np.ndarray, tol: float) -> list[list[int]]:
@@ -322,12 +322,12 @@ def _separate_all(obj: ArticulatedObject, members: list[int], k: int) -> int:
 
 FRONTS = PANELS + ("drawer",)
 BEYOND = 0.1       # of the smaller front's side: an overlap that still leaves it beyond
+KEEP_SIDE = 0.25   # half-faces off the middle a front stated on one side keeps (the alignment
+                   # check's margin is 0.2, model.data.spatial.HPOS_MARGIN)
 # m of carcass left around the fronts a face's fill grows, per category, and whether the
 # bottom is held too (the data's medians, model/data/synth: a cabinet's sides and top, its
 # bottom varying with the plinth; an oven's walls around its door and drawer, the control
 # panel above them; a safe's walls). Washers keep their round doors as decoded.
-KEEP_SIDE = 0.25   # half-faces off the middle a front stated on one side keeps (the alignment
-                   # check's margin is 0.2, model.data.spatial.HPOS_MARGIN)
 FILL_FRAME = {"StorageFurniture": (0.023, False), "Oven": (0.03, True), "Safe": (0.05, True)}
 
 
@@ -363,10 +363,10 @@ def _fill(obj: ArticulatedObject, parent: int, members: list[int], k: int,
     front, where the data's fronts cover 93 % (storage, median) of the rectangle they span,
     and that rectangle reaches to the category's frame (``FILL_FRAME``) of the carcass.
     Vertical extents first, then horizontal; a part grows towards a front wholly beyond it
-    only to the middle of the gap between them (``GAP`` apart), and towards another part on
-    its face (a knob, a dial) only to ``CLEAR`` of it (a tray it covers is recessed behind it,
-    ``_recess``), so every part above, below, left
-    or right of another stays so; nothing shrinks. A front the prompt puts on one side
+    only to the middle of the gap between them (``GAP`` apart), and towards a knob, dial,
+    button or handle on its face only to ``CLEAR`` of it, so every part above, below, left or
+    right of another stays so; nothing shrinks. A tray it now covers goes in behind it
+    (``_recess``). A front the prompt puts on one side
     (``stated``: "a door on the left") keeps its centre there, at least ``KEEP_SIDE`` of the
     half-face off the middle. A drawer's children move with its centre; a door's stay where
     they are (on the door, which only grew: a dial stated in the middle stays there).
