@@ -151,6 +151,7 @@ def test_structure_line_round_trip_and_errors(tmp_path):
     ("control knobs above the door", "knob", {"above": ["door"]}),
     ("a drawer below the door", "drawer", {"below": ["door"]}),
     ("one drawer, and below it a door", "door", {"below": ["drawer"]}),
+    ("a dial in the middle of the door with a handle below it", "handle", {"below": ["dial"]}),
     ("A cabinet with a door. It is hinged on the right.", "door", {"hinge": ["right"]}),
 ])
 def test_parser_reads_spatial_phrases(prompt, label, facts):

@@ -274,6 +274,13 @@ _PANEL = re.compile(r"\b(?:control )?(?:panel|console|fascia|backsplash)\s*$")
 CONTROLS = ("knob", "dial", "button")
 
 
+def _of(toks: list[_Tok], t: _Tok) -> bool:
+    """Whether part token ``t`` is named as a place: "of" within the two words before it
+    ("in the middle of the door", "on top of a cabinet")."""
+    i = toks.index(t)
+    return any(x.text == "of" for x in toks[max(0, i - 2):i])
+
+
 def _attach(facts: list[_Fact], toks: list[_Tok], earlier: list[str],
             spatial: dict[str, dict]) -> list[str]:
     """Attach each fact to the part it describes and merge it into ``spatial``; returns the
@@ -290,7 +297,11 @@ def _attach(facts: list[_Fact], toks: list[_Tok], earlier: list[str],
             after = [t.value for t in parts if t.start >= f.end]
             if f.mode == "post" and before:
                 subj = before[-1]
-                objs = [v for v in before[:-1] if v != subj] or [v for v in earlier if v != subj]
+                # "it" is not a part named as a place ("a dial in the middle of the door
+                # with a handle below it": below the dial)
+                named = [t.value for t in parts if t.end <= f.start and not _of(toks, t)]
+                objs = [v for v in named if v != subj] or \
+                    [v for v in before[:-1] if v != subj] or [v for v in earlier if v != subj]
             else:
                 subj = after[0] if after else None
                 objs = [v for v in before if v != subj] or [v for v in earlier if v != subj]
