@@ -152,6 +152,7 @@ def test_structure_line_round_trip_and_errors(tmp_path):
     ("a drawer below the door", "drawer", {"below": ["door"]}),
     ("one drawer, and below it a door", "door", {"below": ["drawer"]}),
     ("a dial in the middle of the door with a handle below it", "handle", {"below": ["dial"]}),
+    ("a safe with a keypad at the top of its door", "button", {"vpos": ["top"]}),
     ("A cabinet with a door. It is hinged on the right.", "door", {"hinge": ["right"]}),
 ])
 def test_parser_reads_spatial_phrases(prompt, label, facts):

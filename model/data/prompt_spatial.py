@@ -169,6 +169,9 @@ _SPATIAL_PATTERNS: list[tuple[str, str, str]] = [
                     r"|cent(?:er|re)d(?: on (?:the |its )?(?:front|door|panel))?)\b"
                     r"(?! (?:row|drawer|shelf|one|of))", "post"),
     ("vpos", r"\b(?:on|at|near) the (top|bottom)\b(?! of)|\b(?:on|up) (top)\b(?! of)|\bat the (base)\b", "post"),
+    # "a keypad at the top of its door": the upper part of the panel it sits on
+    ("vpos", r"\b(?:at|near) the (top|bottom) (?:part |half |edge )?of (?:the |its |their )?"
+             r"(?:front|door|panel|control panel|console)\b", "post"),
 ]
 _COMPILED = [(k, re.compile(r), m) for k, r, m in _SPATIAL_PATTERNS]
 _ABOVE = {"above", "over", "on top of"}
