@@ -78,7 +78,7 @@ stage_text_eval() {   # validation only: the test split is scored once, for the 
   artformer eval layout --data "$DATA" --split val --n 100 --out "$RUNS/layout_val_shipped.json"
   # what users see, candidate and shipped: the audit (raw and refined), free-form and dev
   # prompts (the held-out prompts are scored once, for the model that ships)
-  local ck
+  local ck set
   for ck in candidate shipped; do
     local opt=(); [ "$ck" = candidate ] && opt=(--checkpoint "$RUNS/candidate")
     artformer eval audit --seeds 2 --rows raw,refined \

@@ -94,7 +94,6 @@ class ShapeModel:
         """Empirical code logits of each label text: log of the mean P_gt over the training
         parts with that text (uniform for an unseen text). -> (B, 4, N)."""
         pr = self._need_prior()
-        K, N = pr.cfg.n_codebooks, pr.cfg.codebook_size
         out = []
         for t in texts:
             if t not in self._label_logits:
@@ -105,10 +104,9 @@ class ShapeModel:
                     self._label_logits[t] = stored[self.bank["texts"].index(t)].float()
                 elif known and lat is not None:
                     sel = self.bank["text_ids"] == self.bank["texts"].index(t)
-                    P = pr.code_distribution(lat[sel].float()).mean(0)
-                    self._label_logits[t] = P.clamp_min(1e-8).log()
+                    self._label_logits[t] = pr.mean_code_logits(lat[sel])
                 else:
-                    self._label_logits[t] = torch.full((K, N), 1.0 / N).log()
+                    self._label_logits[t] = pr.mean_code_logits(torch.zeros(0, pr.cfg.z_dim))
             out.append(self._label_logits[t])
         return torch.stack(out)
 

@@ -168,6 +168,15 @@ class ShapePrior(nn.Module):
         return F.softmax(self.code_logits(self.normalise(z)), dim=-1)
 
     @torch.inference_mode()
+    def mean_code_logits(self, z: torch.Tensor) -> torch.Tensor:
+        """A set of raw latents (M, Z) -> log of their mean P_gt (K, N), the empirical code
+        logits of a label; uniform for an empty set."""
+        if len(z) == 0:
+            return torch.full((self.cfg.n_codebooks, self.cfg.codebook_size),
+                              1.0 / self.cfg.codebook_size).log()
+        return self.code_distribution(z.float()).mean(0).clamp_min(1e-8).log()
+
+    @torch.inference_mode()
     def semantic(self, text_emb: torch.Tensor) -> torch.Tensor:
         """Pooled label-text embeddings (B, text_dim) -> c_s (B, cs_dim)."""
         return self.sem_encoder(text_emb)

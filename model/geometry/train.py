@@ -250,12 +250,7 @@ def thin_bank(prior, bank: dict, per_text: int, seed: int = 0) -> dict:
     logits, keep = [], []
     for t in range(len(bank["texts"])):
         idx = (tid == t).nonzero()[:, 0]
-        if len(idx):
-            P = prior.code_distribution(lat[idx].float()).mean(0)
-        else:
-            P = torch.full((prior.cfg.n_codebooks, prior.cfg.codebook_size),
-                           1.0 / prior.cfg.codebook_size)
-        logits.append(P.clamp_min(1e-8).log())
+        logits.append(prior.mean_code_logits(lat[idx]))
         keep.append(idx[torch.randperm(len(idx), generator=gen)[:per_text]])
     keep = torch.cat(keep).sort().values
     out = {**bank, "latents": lat[keep], "text_ids": tid[keep],
