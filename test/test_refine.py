@@ -485,6 +485,54 @@ def test_a_rack_level_with_the_oven_door_goes_in_behind_it():
         door.bbox_center[0] - door.bbox_size[0] / 2 - GAP + 1e-9
 
 
+def test_an_ovens_racks_span_its_cavity_at_the_datas_heights():
+    """A dishwasher as decoded: a door over the front, one rack half as deep as the body and
+    a second one as a small box high in the body, on top of the first's level. Both racks
+    span the cavity wall to wall and back to behind the door, flat, one above the other at
+    the data's heights, and slide out past the front without running into the open door;
+    a cabinet's tray is left as it was."""
+    from model.refine.layout import GAP
+    from model.refine.siblings import FILL_FRAME, RACK_CLEAR, RACK_LEVELS, RACK_THICK
+    def rack(centre):
+        return Joint(JointType.PRISMATIC, (centre[0], 0, centre[2]), (1, 0, 0), t_range=(0, 0.1))
+    def dishwasher(category="Oven"):
+        return ArticulatedObject(category=category, name="dishwasher", parts=[
+            _part("body_0", "body", -1, (0.6, 0.6, 0.8), (0, 0, 0.4)),
+            _part("door_0", "door", 0, (0.03, 0.54, 0.74), (0.285, 0, 0.4),
+                  Joint(JointType.REVOLUTE, (0.3, 0, 0.03), (0, 1, 0), r_range=(0, 1.4))),
+            _part("tray_0", "tray", 0, (0.28, 0.55, 0.02), (0.13, 0, 0.3),
+                  rack((0.13, 0, 0.3))),
+            _part("tray_1", "tray", 0, (0.28, 0.08, 0.09), (0.13, 0.2, 0.7),
+                  rack((0.13, 0.2, 0.7))),
+        ])
+    obj = dishwasher()
+    rep = refine_layout(obj)
+    assert rep["racks"] == 2
+    door, low, high = obj.parts[1], obj.parts[2], obj.parts[3]
+    wall = FILL_FRAME["Oven"][0]
+    d_lo = door.bbox_center - door.bbox_size / 2
+    d_hi = door.bbox_center + door.bbox_size / 2
+    h = d_hi[2] - d_lo[2]
+    for t, level in zip((low, high), RACK_LEVELS):
+        lo, hi = t.bbox_center - t.bbox_size / 2, t.bbox_center + t.bbox_size / 2
+        assert np.allclose([lo[1], hi[1]], [-0.3 + wall + RACK_CLEAR, 0.3 - wall - RACK_CLEAR])
+        assert hi[0] <= d_lo[0] - GAP + 1e-9 and lo[0] < -0.2              # back to the door
+        assert RACK_THICK[0] - 1e-9 <= t.bbox_size[2] <= RACK_THICK[1] + 1e-9
+        assert t.bbox_center[2] == pytest.approx(d_lo[2] + level * h)     # re-spaced
+        travel = t.joint.t_range[1]
+        assert hi[0] + travel > 0.3                                       # out past the front
+        assert travel <= 1.1 * (t.bbox_center[2] - d_lo[2]) + 1e-9        # over the open door
+    cabinet = dishwasher("StorageFurniture")
+    assert "racks" not in refine_layout(cabinet)
+    assert cabinet.parts[3].bbox_size[1] < 0.1
+    oven = dishwasher()               # "a rack at the top": it spans the cavity up there
+    oven.parts[2].bbox_center[2] = oven.parts[2].joint.origin[2] = 0.7
+    oven.parts.pop(3)
+    assert refine_layout(oven, stated={"tray": {"vpos": ["top"]}})["racks"] == 1
+    assert oven.parts[2].bbox_center[2] == pytest.approx(0.7, abs=0.01)   # not re-spaced
+    assert oven.parts[2].bbox_size[1] == pytest.approx(0.6 - 2 * (wall + RACK_CLEAR))
+
+
 def test_a_paper_thin_box_is_thickened_before_meshing():
     """A handle decoded 0.1 mm thick gets MIN_SIDE on that side (a sheet of it meshes into
     tens of thousands of faces no simplification keeps), a 12 cm cabinet door the thickest

@@ -430,6 +430,89 @@ def _fill(obj: ArticulatedObject, parent: int, members: list[int], k: int,
     return grown
 
 
+# An oven's racks in the data (model/data/synth/cabinets.py, every tray of the category): wire
+# frames 6.5 mm thick on ledges of the side walls, spanning the cavity between them (3 mm
+# clear of each wall) from 1 cm off the back wall to 4.5 cm behind the front, one at 30 % of
+# the cavity's height or two at 30 % and 65 % (each +-10 %); over v4 objects they span
+# 84-88 % of the body's depth and 91-93 % of its width
+RACKS = ("Oven",)
+RACK_CLEAR = 0.003        # m from each side wall
+RACK_BACK = 0.01          # m off the back wall
+RACK_FRONT = 0.045        # m behind the front face (behind the door: GAP behind it)
+RACK_OUT = 0.03           # m a rack fully out stands past the front face, at least
+RACK_THICK = (0.006, 0.012)  # m: the thickness a rack keeps (the data's 6.5 mm, a decoded
+                            # box up to 1.2 cm)
+RACK_SPACING = 0.2        # of the cavity height: racks closer than this are re-spaced
+RACK_LEVELS = (0.3, 0.65)  # of the cavity height, bottom up: the data's rack heights
+RACK_BAND = (0.25, 0.75)  # of the cavity height: decoded heights kept within it (the data's
+                          # racks: 27-72 %)
+RACK_RISE = 1.1           # a rack slides out at most this times its height above the door's
+                          # hinge (the data's rule: it clears the open door, 70-90 degrees)
+
+
+def _racks(obj: ArticulatedObject, parent: int, members: list[int], k: int, s: float,
+           stated: Optional[dict] = None) -> int:
+    """The trays of an oven's front span its cavity as the data's racks do (``RACKS``): the
+    network often decodes a second rack as a small box high in the body or a rack half as
+    deep as the oven. Across the face and in depth a rack reaches from wall to wall (the
+    category's ``FILL_FRAME`` walls) and from the back wall to behind the door; its
+    thickness is kept within ``RACK_THICK``. Heights stay as decoded while every rack is
+    within ``RACK_BAND`` of the cavity (the height the door covers, else the body's inside)
+    and ``RACK_SPACING`` from the next; otherwise they go to ``RACK_LEVELS``. A rack slides
+    out 40-60 % of its depth, at most ``RACK_RISE`` times its height above the cavity's floor
+    and at least ``RACK_OUT`` past the front. Where the prompt places the trays vertically
+    ("a crumb tray under the door", "a rack at the top") their heights stay, and only those
+    in the cavity span it. -> racks changed."""
+    trays = [i for i in members if obj.parts[i].label == "tray"]
+    if not trays or obj.category not in RACKS or k == 2:     # k == 2: not a front
+        return 0
+    placed = bool(set((stated or {}).get("tray") or {}) & {"vpos", "below", "above"})
+    wall = FILL_FRAME[obj.category][0]
+    P0, P1 = _lohi(obj.parts[parent])
+    doors = [i for i in members if obj.parts[i].label in PANELS]
+    if doors:
+        D0, D1 = _union([obj.parts[i] for i in doors])
+        cav = (max(D0[2], P0[2] + wall), min(D1[2], P1[2] - wall))
+        front = (D0[k] - GAP) if s > 0 else (D1[k] + GAP)
+    else:
+        cav = (P0[2] + wall, P1[2] - wall)
+        front = P1[k] if s > 0 else P0[k]
+    front = min(front, P1[k] - RACK_FRONT) if s > 0 else max(front, P0[k] + RACK_FRONT)
+    back = (P0[k] + wall + RACK_BACK) if s > 0 else (P1[k] - wall - RACK_BACK)
+    h = cav[1] - cav[0]
+    if h <= 0 or (front - back) * s <= 0:
+        return 0
+    if placed:
+        trays = [i for i in trays if cav[0] <= obj.parts[i].bbox_center[2] <= cav[1]]
+    trays.sort(key=lambda i: obj.parts[i].bbox_center[2])
+    zs = [float(obj.parts[i].bbox_center[2]) for i in trays]
+    inside = all(cav[0] + RACK_BAND[0] * h <= z <= cav[0] + RACK_BAND[1] * h for z in zs)
+    spaced = all(b - a >= RACK_SPACING * h for a, b in zip(zs, zs[1:]))
+    if not (inside and spaced or placed):
+        levels = RACK_LEVELS if len(trays) <= len(RACK_LEVELS) else \
+            np.linspace(RACK_LEVELS[0], RACK_LEVELS[-1], len(trays))
+        zs = [cav[0] + f * h for f in levels]
+    for i, z in zip(trays, zs):
+        lo, hi = _lohi(obj.parts[i])
+        t = float(np.clip(hi[2] - lo[2], *RACK_THICK))
+        lo[2], hi[2] = z - t / 2, z + t / 2
+        lo[k], hi[k] = min(back, front), max(back, front)
+        for d in range(2):
+            if d != k:
+                lo[d], hi[d] = P0[d] + wall + RACK_CLEAR, P1[d] - wall - RACK_CLEAR
+        _set(obj.parts[i], lo, hi)
+        # it slides 40-60 % of its depth and at most RACK_RISE times its height above the
+        # cavity's floor, as the data's racks do, and at least RACK_OUT past the front face
+        # (the opening it leaves through)
+        j, depth = obj.parts[i].joint, hi[k] - lo[k]
+        face = P1[k] if s > 0 else P0[k]
+        travel = float(np.clip(max(abs(j.t_range[0]), abs(j.t_range[1])), 0.4 * depth,
+                               0.6 * depth))
+        travel = min(travel, max(RACK_OUT, RACK_RISE * (z - cav[0])))
+        j.t_range = (0.0, max(travel, abs(face - front) + RACK_OUT))
+    return len(trays)
+
+
 def siblings(obj: ArticulatedObject, cfg: LayoutConfig, report: dict,
              stated: Optional[dict] = None) -> None:
     """Align repeated parts and cut overlapping siblings apart, parent by parent; children
@@ -462,6 +545,9 @@ def siblings(obj: ArticulatedObject, cfg: LayoutConfig, report: dict,
             if cfg.fill and obj.category in FILL_FRAME:
                 report["filled"] = report.get("filled", 0) + _fill(obj, par, members, k,
                                                                         stated or {})
+            if cfg.fill and obj.category in RACKS:
+                report["racks"] = report.get("racks", 0) + _racks(obj, par, members, k, s,
+                                                                  stated)
             if cfg.heaps and k == 0:      # drawers and doors in rows of equal cells
                 heaped = {tuple(g) for g, _ in heaps}
                 for g in _groups(obj, members):
