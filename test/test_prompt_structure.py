@@ -52,6 +52,21 @@ def test_a_washers_loading_side_implies_its_door_or_lid():
     assert "door" not in parse_prompt("a front-loading dishwasher cabinet").counts
 
 
+def test_a_microwave_is_an_oven_whose_door_hangs_on_its_left_side():
+    e = parse_prompt("a microwave with a keypad")
+    assert e.category == "Oven" and e.counts["door"] == 1
+    assert e.spatial["door"] == {"hinge": ["left"], "opens": ["sideways"]}
+    s = structure_for(e, "Oven", _all_labels("Oven"))
+    assert s["door"]["hinge"] == ["left"]
+    # what the prompt says about the door wins; a microwave-sized safe is a safe
+    assert parse_prompt("a microwave with a drop-down door").spatial["door"] == {"opens": ["down"]}
+    assert parse_prompt("a microwave with its door hinged on the right").spatial["door"] == \
+        {"hinge": ["right"]}
+    assert "door" not in parse_prompt("a microwave hinged on the right").spatial   # no left
+    assert "hinge" not in parse_prompt("a microwave with two doors").spatial.get("door", {})
+    assert parse_prompt("a microwave-sized safe with a door").category == "Safe"
+
+
 def test_nothing_to_hold_or_a_part_the_category_lacks():
     assert not stated_counts(parse_prompt("a cabinet"))
     assert not stated_counts(parse_prompt("a bottle"))

@@ -533,6 +533,40 @@ def test_an_ovens_racks_span_its_cavity_at_the_datas_heights():
     assert oven.parts[2].bbox_size[1] == pytest.approx(0.6 - 2 * (wall + RACK_CLEAR))
 
 
+def test_door_handles_go_to_the_free_edge():
+    """A door hinged on its left edge (-y) with a short handle beside the hinge, and a
+    microwave door hinged there too with a bar across it (decoded for a drop-down door):
+    both handles end up at the free edge, the bar turned to run along the hinge; a handle
+    the prompt places, or one that would run into a knob on the door, stays."""
+    from model.refine import free_edge_handles
+    from model.refine.layout import HANDLE_INSET, HANDLE_LENGTH
+    def door(handle_size, handle_centre):
+        return ArticulatedObject(category="Oven", name="d", parts=[
+            _part("body_0", "body", -1, (0.4, 0.5, 0.4), (0, 0, 0.2)),
+            _part("door_0", "door", 0, (0.03, 0.4, 0.36), (0.215, -0.03, 0.2),
+                  Joint(JointType.REVOLUTE, (0.23, -0.23, 0.2), (0, 0, -1), r_range=(0, 1.6))),
+            _part("handle_0", "handle", 1, handle_size, handle_centre),
+        ])
+    short = door((0.03, 0.03, 0.12), (0.245, -0.15, 0.25))
+    assert free_edge_handles(short) == 1
+    h = short.parts[2]
+    assert h.bbox_center[1] == pytest.approx(0.17 - HANDLE_INSET[0])      # 4 cm off the edge
+    assert h.bbox_center[2] == pytest.approx(0.25)                          # height kept
+    bar = door((0.03, 0.38, 0.02), (0.245, -0.03, 0.3))
+    assert free_edge_handles(bar) == 1
+    h = bar.parts[2]
+    assert np.allclose(h.bbox_size, (0.03, 0.02, HANDLE_LENGTH * 0.36))    # along the hinge
+    assert h.bbox_center[1] == pytest.approx(0.17 - HANDLE_INSET[0])
+    assert h.bbox_center[2] + h.bbox_size[2] / 2 <= 0.38 + 1e-9            # on the door
+    placed = door((0.03, 0.03, 0.12), (0.245, -0.15, 0.25))
+    assert free_edge_handles(placed, {"handle": {"hpos": ["left"]}}) == 0
+    blocked = door((0.03, 0.03, 0.12), (0.245, -0.15, 0.25))
+    blocked.parts.append(_part("knob_0", "knob", 1, (0.03, 0.05, 0.05), (0.245, 0.12, 0.25),
+                               Joint(JointType.CONTINUOUS, (0.245, 0.12, 0.25), (1, 0, 0))))
+    assert free_edge_handles(blocked) == 0
+    assert blocked.parts[2].bbox_center[1] == pytest.approx(-0.15)
+
+
 def test_a_paper_thin_box_is_thickened_before_meshing():
     """A handle decoded 0.1 mm thick gets MIN_SIDE on that side (a sheet of it meshes into
     tens of thousands of faces no simplification keeps), a 12 cm cabinet door the thickest

@@ -331,6 +331,9 @@ IMPLIED_BY_CATEGORY = {
         (("top-loading", "top loading", "top-loader", "top loader", "top-load"),
          ("lid", "revolute"))),
 }
+# A microwave's door hangs on its left side (the viewer's left) and swings open sideways,
+# as the data's side-hinged ovens do, unless the prompt says anything of hinges or opening.
+SIDE_HINGED_NAMES = {"Oven": (("microwave",), "left")}
 
 
 def _tidy(out: ExpectedStructure, text: str) -> None:
@@ -346,6 +349,17 @@ def _tidy(out: ExpectedStructure, text: str) -> None:
             out.counts[lab] = 1
             out.joint_types.setdefault(lab, [jt])
             break
+    names, side = SIDE_HINGED_NAMES.get(out.category, ((), ""))
+    if any(n in low for n in names) and out.counts.get("door", 1) == 1 and "lid" not in named:
+        if "door" not in named:
+            out.counts["door"] = 1
+            out.joint_types.setdefault("door", ["revolute"])
+        door = out.spatial.setdefault("door", {})
+        said = any(w in low for w in ("hinge", "open", "swing", "drop", "flap", "pull-down"))
+        if not door.get("hinge") and not door.get("opens") and not said:
+            door["hinge"], door["opens"] = [side], ["sideways"]
+        elif not door:
+            del out.spatial["door"]
     if out.category == "USB" and "lid" in (set(out.counts) | set(out.min_counts)) \
             and "cap" not in out.counts:          # a USB stick's cover is its cap
         _relabel(out, "lid", "cap")

@@ -248,11 +248,13 @@ class Generator:
         """A decoded tree as the object the product meshes: its boxes and joints, with the
         layout refinement when ``refine`` (default: the config's) — the arrangements the
         prompt states first (model.refine.arrange, with ``prompt_structure``), then
-        model.refine.refine_layout, then the hinge sides a structure asked for."""
+        model.refine.refine_layout, then the hinge sides a structure asked for, then door
+        handles to their free edge (free_edge_handles)."""
         obj = tree.to_object()
         if not (self.config.refine if refine is None else refine):
             return obj
-        from model.refine import arrange_stated, place_stated_sides, refine_layout
+        from model.refine import (arrange_stated, free_edge_handles, place_stated_sides,
+                                  refine_layout)
         report = {} if report is None else report
         stated = tree.spatial if self.config.prompt_structure else None
         if stated:
@@ -261,6 +263,7 @@ class Generator:
         if stated:
             report["arranged"] += place_stated_sides(obj, stated)
         _keep_hinge_sides(obj, tree.hinges)
+        report["layout"]["handles_to_free_edge"] = free_edge_handles(obj, stated)
         return obj
 
     def _geometry(self, tree, gen, timings: dict, keep: Optional[ArticulatedObject]) -> ArticulatedObject:

@@ -21,7 +21,7 @@ import numpy as np
 from model.core import ArticulatedObject, meshops
 
 from .arrange import arrange_stated, place_stated_sides
-from .layout import LayoutConfig, face_of, refine_layout
+from .layout import LayoutConfig, face_of, free_edge_handles, refine_layout
 
 
 @dataclass
@@ -129,4 +129,4 @@ def _within_budget(obj: ArticulatedObject, budget: int, floaters: bool, frozen: 
 
 
 __all__ = ["RefineConfig", "simplify_meshes", "LayoutConfig", "arrange_stated",
-           "place_stated_sides", "refine_layout", "refine_meshes", "face_of"]
+           "free_edge_handles", "place_stated_sides", "refine_layout", "refine_meshes", "face_of"]

@@ -200,6 +200,63 @@ def _hinge(obj: ArticulatedObject, i: int, face: tuple[int, float]) -> None:
     j.r_range = (0.0, float(max(abs(lo_r), abs(hi_r))))
 
 
+HANDLE_INSET = (0.04, 0.15)   # the data's door handles: centred min(4 cm, 15 % of the
+                              # door's width) from the free edge (model/data/synth/carcass.py)
+HANDLE_LENGTH = 0.45          # ... running along the hinge for 20-45 % of the door
+
+
+def free_edge_handles(obj: ArticulatedObject, stated: Optional[dict] = None) -> int:
+    """A handle on the hinge half of a door or lid goes to the free edge, where every handle
+    of the data is and where a hand (or gripper) gets leverage: its centre
+    ``HANDLE_INSET`` from that edge (or its half-width plus 1 cm when wider), its height
+    kept. A bar across the swing wider than half the panel (decoded for a hinge on another
+    edge: a drop-down door's bar on a microwave door hinged at the side) is turned to run
+    along the hinge, at most ``HANDLE_LENGTH`` of the panel long, and goes there too.
+    Handles the prompt places (``stated``) and moves that would run into another part on
+    the panel are left. Run after the hinges are final. -> handles moved."""
+    if (stated or {}).get("handle"):
+        return 0
+    moved = 0
+    for i, p in enumerate(obj.parts):
+        j = p.joint
+        if p.label not in PANELS or j.type != JointType.REVOLUTE:
+            continue
+        a, k = _principal(j.axis)[0], int(np.argmin(p.bbox_size))
+        if a == k:
+            continue
+        u = 3 - a - k                            # across the swing, in the panel's plane
+        lo, hi = _lohi(p)
+        w = hi[u] - lo[u]
+        sign = 1.0 if j.origin[u] <= p.bbox_center[u] else -1.0   # from hinge to free edge
+        free = hi[u] if sign > 0 else lo[u]
+        kids = obj.children(i)
+        for c in kids:
+            h = obj.parts[c]
+            if h.label != "handle" or obj.children(c):
+                continue
+            size = h.bbox_size.copy()
+            if size[u] > 0.5 * w:
+                if size[u] <= size[a]:
+                    continue
+                # a bar across the swing (decoded for the other hinge): turned to run along
+                # the hinge, HANDLE_LENGTH of the panel at most, as the data's handles do
+                size[u], size[a] = size[a], min(size[u], HANDLE_LENGTH * p.bbox_size[a])
+            elif (h.bbox_center[u] - j.origin[u]) * sign >= 0.5 * w:
+                continue
+            inset = max(min(HANDLE_INSET[0], HANDLE_INSET[1] * w), size[u] / 2 + 0.01)
+            centre = h.bbox_center.copy()
+            centre[u] = free - sign * inset
+            centre[a] = np.clip(centre[a], lo[a] + size[a] / 2, hi[a] - size[a] / 2)
+            hlo, hhi = centre - size / 2, centre + size / 2
+            if any(np.all((hlo < _lohi(obj.parts[o])[1]) & (_lohi(obj.parts[o])[0] < hhi))
+                   for o in kids if o != c):
+                continue
+            h.joint.origin = np.asarray(h.joint.origin, dtype=np.float64) + centre - h.bbox_center
+            h.bbox_center, h.bbox_size = centre, size
+            moved += 1
+    return moved
+
+
 def _neighbours_side(obj: ArticulatedObject, i: int, face: tuple[int, float], a: int,
                      u: int) -> int:
     """For a panel hinged about axis ``a``: -1 / +1 when its siblings on the same face that
