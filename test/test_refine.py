@@ -260,7 +260,7 @@ def _corner_oven() -> ArticulatedObject:
 
 def test_oven_door_fills_its_front_and_stays_clear_of_the_controls():
     from model.refine.layout import CLEAR
-    from model.refine.siblings import FILL_FRAME
+    from model.refine.siblings import CLEAR_SWING, FILL_FRAME
     frame = FILL_FRAME["Oven"][0]
     obj = _corner_oven()
     controls = [p.bbox_center.copy() for p in obj.parts[2:]]
@@ -269,8 +269,10 @@ def test_oven_door_fills_its_front_and_stays_clear_of_the_controls():
     lo, hi = door.bbox_center - door.bbox_size / 2, door.bbox_center + door.bbox_size / 2
     assert rep["filled"] == 1 and _structure(obj) == _structure(_corner_oven())
     assert lo[1] == pytest.approx(-0.4 + frame) and lo[2] == pytest.approx(frame)
-    assert hi[2] == pytest.approx(0.52 - CLEAR)          # below the knobs on the panel
-    assert hi[1] == pytest.approx(0.27 - CLEAR)          # left of the dial beside it
+    # below the knobs on the panel, clear of the top edge's swing; left of the dial beside
+    # the edge that turns in its own plane
+    assert hi[2] == pytest.approx(0.52 - CLEAR_SWING)
+    assert hi[1] == pytest.approx(0.27 - CLEAR)
     for p, c in zip(obj.parts[2:], controls):           # the controls stay where they were
         assert np.allclose(p.bbox_center[1:], c[1:]) and not _boxes_overlap(p, door)
     assert door.joint.origin[2] == pytest.approx(lo[2], abs=0.02)   # hinged at its bottom
@@ -324,9 +326,10 @@ def test_a_bottle_stands_on_the_hull_of_its_body_below_the_cap():
 
 def test_double_doors_swing_apart_and_knobs_keep_clear_of_a_door():
     """Two doors side by side, both predicted hinged at the middle, end up hinged on their
-    outer edges; a knob 3 mm above a drop-down oven door moves to CLEAR from it, and a knob
-    in front of the door's outline with no room to move makes the door give way."""
-    from model.refine.layout import CLEAR
+    outer edges; a knob 3 mm above a drop-down oven door moves to CLEAR_SWING from the top
+    edge that swings out, and a knob in front of the door's outline with no room to move
+    makes the door give way."""
+    from model.refine.siblings import CLEAR_SWING
     wardrobe = ArticulatedObject(category="StorageFurniture", name="pair", parts=[
         _part("body_0", "body", -1, (0.5, 1.0, 1.6), (0, 0, 0.8)),
         _part("door_0", "door", 0, (0.02, 0.48, 1.5), (0.24, -0.245, 0.8),
@@ -352,13 +355,41 @@ def test_double_doors_swing_apart_and_knobs_keep_clear_of_a_door():
     refine_layout(obj)
     door, knob = obj.parts[1:]
     assert knob.bbox_center[2] - knob.bbox_size[2] / 2 >= \
-        door.bbox_center[2] + door.bbox_size[2] / 2 + CLEAR - 1e-9
+        door.bbox_center[2] + door.bbox_size[2] / 2 + CLEAR_SWING - 1e-9
     obj = oven((0.265, 0.1, 0.45), knob_size=(0.03, 0.05, 0.16))   # over the door, no room
     refine_layout(obj)
     door, knob = obj.parts[1:]
     assert door.bbox_center[2] + door.bbox_size[2] / 2 < door_top
     assert door.bbox_center[2] + door.bbox_size[2] / 2 <= \
-        knob.bbox_center[2] - knob.bbox_size[2] / 2 - CLEAR + 1e-9
+        knob.bbox_center[2] - knob.bbox_size[2] / 2 - CLEAR_SWING + 1e-9
+
+
+def test_knobs_decoded_as_two_overlapping_rows_become_one_row():
+    """A stove's six knobs decoded as two interleaved rows 4.5 cm apart whose boxes overlap
+    across the row: one row at their mean height, evenly spaced, none overlapping; a 2 x 2
+    keypad a pitch apart keeps its two rows."""
+    def knob(y, z, size):
+        return _part(f"knob_{y}", "knob", 0, (0.04, size, 0.065), (0.28, y, z),
+                     Joint(JointType.CONTINUOUS, (0.28, y, z), (1, 0, 0)))
+    row = [(0.237, 0.617, 0.062), (0.133, 0.617, 0.081), (0.061, 0.572, 0.072),
+           (-0.033, 0.572, 0.062), (-0.085, 0.572, 0.053), (-0.176, 0.617, 0.089)]
+    stove = ArticulatedObject(category="Oven", name="stove", parts=[
+        _part("body_0", "body", -1, (0.52, 0.7, 0.67), (0, 0, 0.335))] +
+        [knob(*k) for k in row])
+    refine_layout(stove)
+    knobs = stove.parts[1:]
+    zs = {round(float(p.bbox_center[2]), 6) for p in knobs}
+    assert len(zs) == 1
+    ys = sorted(float(p.bbox_center[1]) for p in knobs)
+    assert np.allclose(np.diff(ys), np.diff(ys)[0])
+    assert not any(_boxes_overlap(a, b) for n, a in enumerate(knobs) for b in knobs[n + 1:])
+    keypad = ArticulatedObject(category="Safe", name="safe", parts=[
+        _part("body_0", "body", -1, (0.4, 0.4, 0.4), (0, 0, 0.2))] + [
+        _part(f"button_{n}", "button", 0, (0.01, 0.02, 0.02), (0.2, y, z),
+              Joint(JointType.PRISMATIC, (0.2, y, z), (-1, 0, 0), t_range=(0, 0.003)))
+        for n, (y, z) in enumerate([(0.0, 0.3), (0.025, 0.3), (0.0, 0.268), (0.03, 0.268)])])
+    refine_layout(keypad)
+    assert len({round(float(p.bbox_center[2]), 6) for p in keypad.parts[1:]}) == 2
 
 
 def test_a_screw_cap_sweeps_a_solid_of_revolution_that_holds_it_over_its_travel():

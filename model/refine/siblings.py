@@ -10,7 +10,9 @@ import numpy as np
 from model.core import ArticulatedObject
 
 from .layout import (CLEAR, GAP, MIN_KEEP, PANELS, SLIDERS, SMALL, LayoutConfig, _attach,
-                     _lohi, _move_subtree, _set, _union, face_of)
+                     _lohi, _move_subtree, _principal, _set, _union, face_of)
+
+CLEAR_SWING = 0.02   # m between a knob, dial or button and a panel edge that swings out
 
 
 def _clusters(values: np.ndarray, tol: float) -> list[list[int]]:
@@ -185,9 +187,18 @@ def _drawer_handles(obj: ArticulatedObject, drawers: list[int]) -> int:
     return len(kids)
 
 
-def _space_small(obj: ArticulatedObject, members: list[int], k: int) -> None:
+ROW_OVERLAP = 0.9   # of the median size across a row: centres closer than this share a row
+ARRANGED = {"layout", "rows", "columns"}   # stated facts whose rows model.refine.arrange laid
+
+
+def _space_small(obj: ArticulatedObject, members: list[int], k: int,
+                 stated_rows: bool = False) -> None:
     """Small parts that collide are spread evenly along the in-face axis of their largest
-    spread, within their parent's face."""
+    spread, within their parent's face, row by row. Parts whose boxes overlap across the
+    row (centres within ``ROW_OVERLAP`` of the median size: a stove's knobs decoded as two
+    interleaved, overlapping rows) form one row at their mean height; a keypad's rows,
+    a pitch apart, stay rows, as do rows the prompt states (``stated_rows``: laid out by
+    model.refine.arrange, rows half a size apart)."""
     parts = [obj.parts[i] for i in members]
     if len(parts) < 2 or not any(_overlap(a, b) for n, a in enumerate(parts) for b in parts[n + 1:]):
         return
@@ -196,11 +207,15 @@ def _space_small(obj: ArticulatedObject, members: list[int], k: int) -> None:
     d = max(ax, key=lambda a: np.ptp(cs[:, a]))
     other = [a for a in ax if a != d][0]
     # a grid when the other axis has distinct rows: space within each row only
-    rows = _clusters(cs[:, other], 0.5 * float(np.median([p.bbox_size[other] for p in parts])))
+    tol = 0.5 if stated_rows else ROW_OVERLAP
+    rows = _clusters(cs[:, other], tol * float(np.median([p.bbox_size[other] for p in parts])))
     plo, phi = _lohi(obj.parts[parts[0].parent])
     for row in rows:
         if len(row) < 2:
             continue
+        if not stated_rows:
+            for m in row:
+                parts[m].bbox_center[other] = float(cs[row, other].mean())
         row = sorted(row, key=lambda m: cs[m, d])
         size = max(parts[m].bbox_size[d] for m in row)
         pitch = max(size + GAP * 2, (cs[row[-1], d] - cs[row[0], d]) / (len(row) - 1))
@@ -216,6 +231,15 @@ def _space_small(obj: ArticulatedObject, members: list[int], k: int) -> None:
             parts[m].bbox_size[d] = size
 
 
+def _clearance(front, d: int) -> float:
+    """How far a knob, dial or button beside ``front`` along axis ``d`` stays from it:
+    ``CLEAR_SWING`` beside a door's or lid's edges that swing out (across its hinge axis),
+    else ``CLEAR``."""
+    if front.label in PANELS and _principal(front.joint.axis)[0] != d:
+        return CLEAR_SWING
+    return CLEAR
+
+
 def _clear_panels(obj: ArticulatedObject, members: list[int], k: int) -> int:
     """Knobs, dials and buttons on a face keep ``CLEAR`` from the outline of a door or lid
     on that face: a panel swings its edge out past its closed outline by up to its
@@ -223,41 +247,63 @@ def _clear_panels(obj: ArticulatedObject, members: list[int], k: int) -> int:
     meshes (an oven door stalled on the knob 3 mm above it). A small part closer than that
     moves away along the axis it stands beside the panel on, or, when it stands in front of
     the panel, off its outline the shortest way, within its parent's face; where it cannot
-    move, the panel gives way on that side. Returns how many moved."""
+    move, the panel gives way on that side. Beside the edges that swing out (across the
+    hinge axis: the top edge of a drop-down door, the free edge of a side-hinged one) the
+    panel then gives way to ``CLEAR_SWING``: the collision pieces are cells of the part's
+    meshing grid (a centimetre on a 70 cm door), and a drop-down door's top edge clipped
+    knobs 1.2 cm above it; the knobs stay, so rows of them keep their places. Returns how
+    many moved or gave way."""
     panels = [obj.parts[c] for c in members if obj.parts[c].label in PANELS]
     plo, phi = _lohi(obj.parts[obj.parts[members[0]].parent])
     moved = 0
+    ins = [d for d in range(3) if d != k]
+
+    def give_way(panel, q, n: int, clear: float) -> None:
+        lo, hi = _lohi(panel)
+        qlo, qhi = _lohi(q)
+        d, up = ins[n], q.bbox_center[ins[n]] > panel.bbox_center[ins[n]]
+        keep = MIN_KEEP * (hi[d] - lo[d])
+        if up:
+            hi[d] = max(min(hi[d], qlo[d] - clear), lo[d] + keep)
+        else:
+            lo[d] = min(max(lo[d], qhi[d] + clear), hi[d] - keep)
+        _set(panel, lo, hi)
+
+    def gaps_of(panel, q) -> list[float]:
+        (lo, hi), (qlo, qhi) = _lohi(panel), _lohi(q)
+        return [max(lo[d] - qhi[d], qlo[d] - hi[d]) for d in ins]   # < 0: extents overlap
+
     for c in members:
         q = obj.parts[c]
         if q.label not in ("knob", "dial", "button"):
             continue
         for panel in panels:
-            lo, hi = _lohi(panel)
-            qlo, qhi = _lohi(q)
-            ins = [d for d in range(3) if d != k]
-            gaps = [max(lo[d] - qhi[d], qlo[d] - hi[d]) for d in ins]   # < 0: extents overlap
-            if max(gaps) >= CLEAR:
-                continue
-            # beside the panel: away along that axis; in front of it (a knob on a door's
-            # outline, which the door hits when it opens): off it the shortest way that fits
-            order = [int(np.argmax(gaps))] if max(gaps) >= 0 else list(np.argsort(gaps)[::-1])
-            for n in order:
-                d = ins[n]
-                up = q.bbox_center[d] > panel.bbox_center[d]
-                new = q.bbox_center[d] + (CLEAR - gaps[n]) * (1.0 if up else -1.0)
-                if plo[d] + q.bbox_size[d] / 2 <= new <= phi[d] - q.bbox_size[d] / 2:
-                    q.bbox_center[d] = new
-                    moved += 1
-                    break
-            else:                # no room to move it: the panel gives way on that side
-                n = order[0]
-                d, up = ins[n], q.bbox_center[ins[n]] > panel.bbox_center[ins[n]]
-                keep = MIN_KEEP * (hi[d] - lo[d])
-                if up:
-                    hi[d] = max(min(hi[d], qlo[d] - CLEAR), lo[d] + keep)
-                else:
-                    lo[d] = min(max(lo[d], qhi[d] + CLEAR), hi[d] - keep)
-                _set(panel, lo, hi)
+            gaps = gaps_of(panel, q)
+            if max(gaps) < CLEAR:
+                # beside the panel: away along that axis; in front of it (a knob on a door's
+                # outline, which the door hits when it opens): off it the shortest way
+                order = [int(np.argmax(gaps))] if max(gaps) >= 0 else \
+                    list(np.argsort(gaps)[::-1])
+                for n in order:
+                    d = ins[n]
+                    up = q.bbox_center[d] > panel.bbox_center[d]
+                    new = q.bbox_center[d] + (CLEAR - gaps[n]) * (1.0 if up else -1.0)
+                    if plo[d] + q.bbox_size[d] / 2 <= new <= phi[d] - q.bbox_size[d] / 2:
+                        q.bbox_center[d] = new
+                        break
+                else:            # no room to move it: the panel gives way on that side
+                    give_way(panel, q, order[0], CLEAR)
+                moved += 1
+    for c in members:            # then the swinging edges give way, the parts staying put
+        q = obj.parts[c]
+        if q.label not in ("knob", "dial", "button"):
+            continue
+        for panel in panels:
+            gaps = gaps_of(panel, q)
+            n = int(np.argmax(gaps))
+            need = _clearance(panel, ins[n])
+            if gaps[n] < need and all(g < 0 for m, g in enumerate(gaps) if m != n):
+                give_way(panel, q, n, need)
                 moved += 1
     return moved
 
@@ -364,7 +410,7 @@ def _fill(obj: ArticulatedObject, parent: int, members: list[int], k: int,
     and that rectangle reaches to the category's frame (``FILL_FRAME``) of the carcass.
     Vertical extents first, then horizontal; a part grows towards a front wholly beyond it
     only to the middle of the gap between them (``GAP`` apart), and towards a knob, dial,
-    button or handle on its face only to ``CLEAR`` of it, so every part above, below, left or
+    button or handle on its face only to ``_clearance`` of it, so every part above, below, left or
     right of another stays so; nothing shrinks. A tray it now covers goes in behind it
     (``_recess``). A front the prompt puts on one side
     (``stated``: "a door on the left") keeps its centre there, at least ``KEEP_SIDE`` of the
@@ -392,6 +438,7 @@ def _fill(obj: ArticulatedObject, parent: int, members: list[int], k: int,
         for i in fronts:
             lo, hi = box[i][0].copy(), box[i][1].copy()
             up, down = R1[d], R0[d]
+            clear = _clearance(obj.parts[i], d)
             for j in fronts + fixed:   # any part wholly beyond i along d stays beyond it, so
                 jl, jh = box[j]         # what is above, below, left or right of what keeps so
                 if j == i:
@@ -400,9 +447,9 @@ def _fill(obj: ArticulatedObject, parent: int, members: list[int], k: int,
                 tol = BEYOND * min(hi[d] - lo[d], jh[d] - jl[d]) + 1e-6
                 front = j in start          # a front: the middle of the gap; else CLEAR
                 if jl[d] >= hi[d] - tol:
-                    up = min(up, (hi[d] + jl[d] - GAP) / 2 if front else jl[d] - CLEAR)
+                    up = min(up, (hi[d] + jl[d] - GAP) / 2 if front else jl[d] - clear)
                 elif jh[d] <= lo[d] + tol:
-                    down = max(down, (lo[d] + jh[d] + GAP) / 2 if front else jh[d] + CLEAR)
+                    down = max(down, (lo[d] + jh[d] + GAP) / 2 if front else jh[d] + clear)
             lo0, hi0 = lo[d], hi[d]
             lo[d], hi[d] = min(lo[d], down), max(hi[d], up)
             side = _kept_side(stated or {}, obj.parts[i].label, d)
@@ -537,7 +584,8 @@ def siblings(obj: ArticulatedObject, cfg: LayoutConfig, report: dict,
                     if len(same) >= 2:
                         _align(obj, same, k, s)
                         if label in SMALL:
-                            _space_small(obj, same, k)
+                            facts = set((stated or {}).get(label) or {})
+                            _space_small(obj, same, k, bool(facts & ARRANGED))
                         report["aligned_groups"] += 1
             if cfg.separate:
                 report["separated"] += _separate_all(obj, members, k)
