@@ -1,5 +1,6 @@
 """Door handles as generated: how many sit on the hinge half of their door or lid, and how
-many are bars across the swing (docs/refine.md, "Handles to the free edge").
+many are bars across the swing (docs/refine.md, "Handles to the free edge"); and knobs and
+dials out of the data's round shape (docs/refine.md, "Round controls").
 
     python scripts/handle_check.py [--prompts model/metrics/prompts_bench.txt] [--seeds 2]
 """
@@ -32,6 +33,22 @@ def handle_places(obj) -> list[tuple[float, bool]]:
     return out
 
 
+def odd_controls(obj) -> tuple[int, int]:
+    """(knobs and dials, those whose footprint is over 1.25 times longer one way than the
+    other or that stand out further than they are wide: the data's are round, ~0.7 of their
+    diameter deep)."""
+    n = odd = 0
+    for p in obj.parts:
+        if p.label not in ("knob", "dial") or not p.joint.type.rotates:
+            continue
+        k = int(np.argmax(np.abs(p.joint.axis)))
+        u, v = [d for d in range(3) if d != k]
+        a, b = sorted((p.bbox_size[u], p.bbox_size[v]))
+        n += 1
+        odd += bool(b > 1.25 * a or p.bbox_size[k] > b * (1 + 1e-6))
+    return n, odd
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--prompts", default="model/metrics/prompts_bench.txt")
@@ -39,14 +56,17 @@ def main() -> None:
     a = ap.parse_args()
     prompts = [ln.strip() for ln in open(a.prompts) if ln.strip() and not ln.startswith("#")]
     gen = Generator.load(GenerationConfig())
-    places = []
+    places, controls, odd = [], 0, 0
     for prompt in prompts:
         for seed in range(a.seeds):
             [res] = gen.generate(prompt, seed=seed)
             places += handle_places(res.obj)
+            n, bad = odd_controls(res.obj)
+            controls, odd = controls + n, odd + bad
     print(f"handles on hinged doors and lids: {len(places)}; on the hinge half: "
           f"{sum(d < 0.5 for d, _ in places)}; bars across the swing: "
           f"{sum(x for _, x in places)}")
+    print(f"knobs and dials: {controls}; out of the data's round shape: {odd}")
 
 
 if __name__ == "__main__":

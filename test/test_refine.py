@@ -364,6 +364,22 @@ def test_double_doors_swing_apart_and_knobs_keep_clear_of_a_door():
         knob.bbox_center[2] - knob.bbox_size[2] / 2 - CLEAR_SWING + 1e-9
 
 
+def test_a_knob_cut_into_a_slab_is_round_again():
+    """A knob decoded 20 cm wide, 1.5 cm tall and 10 cm deep on an oven's front: a square
+    1.5 cm footprint about its centre, no deeper than that, its back still on the face."""
+    obj = ArticulatedObject(category="Oven", name="oven", parts=[
+        _part("body_0", "body", -1, (0.5, 0.6, 0.8), (0, 0, 0.4)),
+        _part("knob_0", "knob", 0, (0.1, 0.2, 0.015), (0.3, 0.1, 0.7),
+              Joint(JointType.REVOLUTE, (0.3, 0.1, 0.7), (1, 0, 0), r_range=(0, 3.5))),
+    ])
+    rep = refine_layout(obj)
+    knob = obj.parts[1]
+    assert rep["rounded"] == 1
+    assert np.allclose(knob.bbox_size, 0.015)
+    assert knob.bbox_center[0] - knob.bbox_size[0] / 2 == pytest.approx(0.25)   # on the face
+    assert np.allclose(knob.bbox_center[1:], (0.1, 0.7))
+
+
 def test_knobs_decoded_as_two_overlapping_rows_become_one_row():
     """A stove's six knobs decoded as two interleaved rows 4.5 cm apart whose boxes overlap
     across the row: one row at their mean height, evenly spaced, none overlapping; a 2 x 2

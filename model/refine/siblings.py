@@ -231,6 +231,38 @@ def _space_small(obj: ArticulatedObject, members: list[int], k: int,
             parts[m].bbox_size[d] = size
 
 
+ROUND = ("knob", "dial")   # round in the data (model/data/synth: _knob's radius)
+
+
+def _round_controls(obj: ArticulatedObject, members: list[int], k: int, s: float) -> int:
+    """Knobs and dials on the face of normal axis ``k`` (outwards along ``s``) get a square
+    footprint in the face, their shorter side, about their centre, and stand out from the
+    face no more than that side: every knob and dial of the data is round and about 0.7 of
+    its diameter deep, and a decoded knob cut apart from its neighbours can be left 20 cm
+    wide, 1.5 cm tall and 10 cm deep. -> parts changed."""
+    changed = 0
+    u, v = [d for d in range(3) if d != k]
+    for c in members:
+        p = obj.parts[c]
+        if p.label not in ROUND:
+            continue
+        lo, hi = _lohi(p)
+        side = float(min(hi[u] - lo[u], hi[v] - lo[v]))
+        if max(hi[u] - lo[u], hi[v] - lo[v], hi[k] - lo[k]) <= side * (1 + 1e-6):
+            continue
+        for d in (u, v):
+            mid = (lo[d] + hi[d]) / 2
+            lo[d], hi[d] = mid - side / 2, mid + side / 2
+        if hi[k] - lo[k] > side:         # the side on the face stays where it is
+            if s > 0:
+                hi[k] = lo[k] + side
+            else:
+                lo[k] = hi[k] - side
+        _set(p, lo, hi)
+        changed += 1
+    return changed
+
+
 def _clearance(front, d: int) -> float:
     """How far a knob, dial or button beside ``front`` along axis ``d`` stays from it:
     ``CLEAR_SWING`` beside a door's or lid's edges that swing out (across its hinge axis),
@@ -589,6 +621,8 @@ def siblings(obj: ArticulatedObject, cfg: LayoutConfig, report: dict,
                         report["aligned_groups"] += 1
             if cfg.separate:
                 report["separated"] += _separate_all(obj, members, k)
+                report["rounded"] = report.get("rounded", 0) + _round_controls(obj, members, k,
+                                                                               s)
                 report["cleared"] = report.get("cleared", 0) + _clear_panels(obj, members, k)
             if cfg.fill and obj.category in FILL_FRAME:
                 report["filled"] = report.get("filled", 0) + _fill(obj, par, members, k,
