@@ -8,8 +8,11 @@
 #   STAGE=sdf bash scripts/recipe_geometry.sh    # one stage: data | cache | sdf | prior | eval | export
 #
 # Settings (environment variables, defaults below): N_OBJECTS, SEED, VERSION, PRESET,
-# SDF_STEPS, PRIOR_STEPS, THREADS, BANK_PER_TEXT, CHUNK_MIN, RUNS. Each run folder gets
+# SDF_STEPS, PRIOR_STEPS, THREADS, BANK_PER_TEXT, CHUNK_MIN, RUNS, DEVICE. Each run folder gets
 # RECIPE.md with the command lines, seed, data version, device and wall times of every chunk.
+# DEVICE=auto trains the auto-encoder on CUDA where torch sees a GPU (a CUDA build of torch;
+# the pinned CPU wheel sees none) and records the GPU in the checkpoint; the prior stays on
+# the CPU.
 #
 # Why these settings: docs/geometry.md, "How good it is". Estimated wall time on 2 CPU
 # cores: in the RECIPE block of docs/geometry.md.
@@ -26,6 +29,7 @@ SDF_STEPS=${SDF_STEPS:-26000}
 PRIOR_STEPS=${PRIOR_STEPS:-20000}
 THREADS=${THREADS:-2}
 BANK_PER_TEXT=${BANK_PER_TEXT:-400}    # retrieval latents kept per label in the exported prior
+DEVICE=${DEVICE:-auto}                 # the auto-encoder's: cpu | cuda | auto
 CHUNK_MIN=${CHUNK_MIN:-140}            # training minutes per invocation (+ <= 10 min loading: <= 2.5 h)
 RUNS=${RUNS:-runs/geometry_${NAME}}
 STAGE=${STAGE:-all}
@@ -72,7 +76,8 @@ EOF
   record "$SDF_RUN" "$(date -u +%FT%TZ) box-frame samples of $DATA cached in $SDF_RUN/cache: $(( $(date -u +%s) - t0 )) s wall"
 }
 
-stage_sdf()   { ls "$SDF_RUN"/cache/parts_val_*.pt >/dev/null 2>&1 || stage_cache; train_chunks sdf "$SDF_RUN" "$SDF_STEPS"; }
+stage_sdf()   { ls "$SDF_RUN"/cache/parts_val_*.pt >/dev/null 2>&1 || stage_cache
+                train_chunks sdf "$SDF_RUN" "$SDF_STEPS" --device "$DEVICE"; }
 stage_prior() { train_chunks prior "$PRIOR_RUN" "$PRIOR_STEPS" --sdf "$SDF_RUN/ckpt.pt"; }
 
 stage_eval() {   # validation only, new weights and the shipped ones side by side; the test

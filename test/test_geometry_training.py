@@ -94,9 +94,12 @@ def _cli(*args):
 def test_train_commands_api_and_resume(prim_data, tmp_path):
     sdf_out, prior_out = tmp_path / "sdf", tmp_path / "prior"
     assert _cli("train", "sdf", "--data", str(prim_data), "--out", str(sdf_out), "--preset", "tiny",
-                "--steps", "30", "--no-progress", "--threads", "1") == 0
+                "--steps", "30", "--no-progress", "--threads", "1", "--device", "auto") == 0
     ck = torch.load(sdf_out / "ckpt.pt", weights_only=True)
     assert ck["step"] == 30 and ck["data_version"] == "primitives-3-6" and "optimizer" in ck
+    # the header says what made it: "cpu", or "cuda (<GPU name>)" where torch sees a GPU
+    assert ck["device"] == "cpu" if not torch.cuda.is_available() else \
+        ck["device"].startswith("cuda (")
     assert ck["command"].startswith("artformer train sdf") and ck["format"] == 2
     # resume continues from step 30 to 40
     assert _cli("train", "sdf", "--data", str(prim_data), "--out", str(sdf_out), "--preset", "tiny",
@@ -256,3 +259,14 @@ def test_box_frame_cache_in_shards_resumes_and_ignores_workers(prim_data, tmp_pa
         assert ps.object_ids == ref.object_ids and ps.texts == ref.texts
         assert torch.equal(ps.points, ref.points) and torch.equal(ps.sdf, ref.sdf)
         assert torch.equal(ps.box_scale, ref.box_scale)
+
+
+def test_training_device_is_resolved_or_refused_clearly():
+    from model.core.training import resolve_device
+    assert resolve_device("cpu").type == "cpu"
+    assert resolve_device("auto").type == ("cuda" if torch.cuda.is_available() else "cpu")
+    with pytest.raises(ValueError, match="cpu, cuda or auto"):
+        resolve_device("tpu")
+    if not torch.cuda.is_available():
+        with pytest.raises(ValueError, match="no CUDA device"):
+            resolve_device("cuda")

@@ -46,6 +46,19 @@ def lr_at(step: int, peak: float, warmup: int, steps: int, floor: float = 0.1,
     return peak * (floor + (1.0 - floor) * 0.5 * (1 + math.cos(math.pi * prog)))
 
 
+def resolve_device(name: str) -> torch.device:
+    """``cpu``, ``cuda`` or ``auto`` (CUDA when torch sees a GPU, else the CPU) as a device;
+    ``cuda`` on a machine without one is a clear error, not a silent CPU run."""
+    if name not in ("cpu", "cuda", "auto"):
+        raise ValueError(f"--device must be cpu, cuda or auto, got {name!r}")
+    if name == "auto":
+        name = "cuda" if torch.cuda.is_available() else "cpu"
+    if name == "cuda" and not torch.cuda.is_available():
+        raise ValueError("--device cuda: torch sees no CUDA device here (this torch build or "
+                         "machine has none); use --device cpu or auto")
+    return torch.device(name)
+
+
 class Dist:
     """The torchrun environment (or a single process)."""
 
@@ -261,4 +274,5 @@ def train_loop(model: torch.nn.Module, opt: torch.optim.Optimizer, cfg: LoopConf
     return state
 
 
-__all__ = ["lr_at", "Dist", "LoopConfig", "LoopState", "seed_all", "train_loop"]
+__all__ = ["lr_at", "resolve_device", "Dist", "LoopConfig", "LoopState", "seed_all",
+           "train_loop"]

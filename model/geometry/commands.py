@@ -40,6 +40,11 @@ def _train_parser(kind: str) -> argparse.ArgumentParser:
                    help="stop this process after M minutes with its checkpoint written, schedule "
                         "untouched; the same command with --resume runs the next chunk")
     p.add_argument("--no-progress", action="store_true")
+    if kind == "sdf":
+        p.add_argument("--device", default="cpu", choices=("cpu", "cuda", "auto"),
+                       help="where the auto-encoder trains (auto: CUDA when torch sees a GPU); "
+                            "the weights load and run on the CPU either way, and the "
+                            "checkpoint records the device")
     p.add_argument("--export", metavar="PATH",
                    help="also write a stripped fp16 copy of the final weights to PATH")
     return p
@@ -56,7 +61,7 @@ def _train(kind: str, argv: list[str]) -> int:
                    sdf=getattr(a, "sdf", None), n_codebooks=getattr(a, "codebooks", None),
                    codebook_size=getattr(a, "codebook_size", None),
                    argv=tuple(["artformer", *argv]), minutes=a.minutes,
-                   chunk_minutes=a.chunk_minutes)
+                   chunk_minutes=a.chunk_minutes, device=getattr(a, "device", "cpu"))
     res = (train_sdf if kind == "sdf" else train_prior)(args)
     import os
     if int(os.environ.get("RANK", "0")) == 0:

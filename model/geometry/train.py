@@ -16,7 +16,7 @@ from typing import Optional
 
 import torch
 
-from model.core.training import Dist, LoopConfig, LoopState, train_loop
+from model.core.training import Dist, LoopConfig, LoopState, resolve_device, train_loop
 
 from .checkpoint import CheckpointError, load_checkpoint, read_checkpoint, save_checkpoint
 from .config import TrainConfig, get_preset
@@ -43,6 +43,7 @@ class RunArgs:
     argv: tuple[str, ...] = ()
     minutes: float = 0.0                 # wall-clock budget over resumes (0 = none)
     chunk_minutes: float = 0.0           # stop this process after M minutes (resume continues)
+    device: str = "cpu"                  # sdf only: cpu | cuda | auto (the prior runs on cpu)
 
 
 def _train_cfg(base: TrainConfig, args: RunArgs, n_items: int, world: int) -> TrainConfig:
@@ -97,10 +98,18 @@ def _loop(kind: str, args: RunArgs, model, tcfg: TrainConfig, batch_fn, val_fn, 
 
 # -- stage 1: the auto-encoder ------------------------------------------------------------
 
+def _device_name(dev: torch.device) -> str:
+    """What made the weights, for the checkpoint header: ``cpu`` or ``cuda (<GPU name>)``."""
+    return f"cuda ({torch.cuda.get_device_name(dev)})" if dev.type == "cuda" else dev.type
+
+
 def train_sdf(args: RunArgs) -> dict:
     from .autoencoder import SDFAutoEncoder
     from .data import load_parts, sample_batch
     dist = Dist()
+    dev = resolve_device(args.device)
+    if dist.active and dev.type != "cpu":
+        raise ValueError("torchrun training runs DDP over gloo on CPU: use --device cpu")
     preset = get_preset(args.preset)
     cfg = preset.sdf
     out = Path(args.out)
@@ -118,17 +127,18 @@ def train_sdf(args: RunArgs) -> dict:
     tcfg = _train_cfg(preset.sdf_train, args, len(train), dist.world)
     torch.set_num_threads(max(1, tcfg.threads // dist.world))
     torch.manual_seed(args.seed)
-    model = SDFAutoEncoder(cfg)
+    model = SDFAutoEncoder(cfg).to(dev)   # batches are drawn on the CPU and moved
 
     vgen = torch.Generator().manual_seed(12345)
     vidx = torch.randperm(len(val), generator=vgen)[:tcfg.val_parts]
-    vbatches = [sample_batch(val, vidx[i:i + tcfg.batch_size], tcfg.n_points, tcfg.n_queries, vgen)
+    vbatches = [tuple(t.to(dev) for t in sample_batch(val, vidx[i:i + tcfg.batch_size],
+                                                      tcfg.n_points, tcfg.n_queries, vgen))
                 for i in range(0, len(vidx), tcfg.batch_size)]
 
     def batch_fn(net, gen):
         idx = torch.randint(0, len(train), (tcfg.batch_size,), generator=gen)
         pts, q, s = sample_batch(train, idx, tcfg.n_points, tcfg.n_queries, gen)
-        return net(pts, q, s)
+        return net(pts.to(dev), q.to(dev), s.to(dev))
 
     def val_fn():
         from .autoencoder import clamped_l1
@@ -142,7 +152,8 @@ def train_sdf(args: RunArgs) -> dict:
     def save_fn(path, step, opt, run):
         save_checkpoint(path, "sdf", model, data_version=train.data_version, seed=args.seed,
                         argv=list(args.argv), step=step, optimizer=opt, train_cfg=tcfg, run=run,
-                        extra={"data": str(args.data), "train_parts": len(train)})
+                        extra={"data": str(args.data), "train_parts": len(train)},
+                        device=_device_name(dev))
 
     res = _loop("sdf", args, model, tcfg, batch_fn, val_fn, dist, out, save_fn)
     dist.close()
