@@ -572,6 +572,11 @@ def test_an_ovens_racks_span_its_cavity_at_the_datas_heights():
     cabinet = dishwasher("StorageFurniture")
     assert "racks" not in refine_layout(cabinet)
     assert cabinet.parts[3].bbox_size[1] < 0.1
+    backwards = dishwasher()          # a rack decoded sliding out of the oven's back
+    backwards.parts[3].joint.axis = np.array([-1.0, 0.0, 0.0])
+    assert refine_layout(backwards)["racks"] == 2
+    assert np.allclose(backwards.parts[3].joint.axis, (1, 0, 0))        # out of the door's face
+    assert backwards.parts[3].bbox_size[0] > 0.4
     oven = dishwasher()               # "a rack at the top": it spans the cavity up there
     oven.parts[2].bbox_center[2] = oven.parts[2].joint.origin[2] = 0.7
     oven.parts.pop(3)

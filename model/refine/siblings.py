@@ -545,7 +545,7 @@ def _racks(obj: ArticulatedObject, parent: int, members: list[int], k: int, s: f
     trays = [i for i in members if obj.parts[i].label == "tray"]
     if not trays or obj.category not in RACKS or k == 2:     # k == 2: not a front
         return 0
-    placed = bool(set((stated or {}).get("tray") or {}) & {"vpos", "below", "above"})
+    placed = _placed_trays(stated)
     wall = FILL_FRAME[obj.category][0]
     P0, P1 = _lohi(obj.parts[parent])
     doors = [i for i in members if obj.parts[i].label in PANELS]
@@ -592,6 +592,31 @@ def _racks(obj: ArticulatedObject, parent: int, members: list[int], k: int, s: f
     return len(trays)
 
 
+def _placed_trays(stated: Optional[dict]) -> bool:
+    """Whether the prompt places the trays vertically ("a crumb tray under the door")."""
+    return bool(set((stated or {}).get("tray") or {}) & {"vpos", "below", "above"})
+
+
+def _racks_to_the_door(obj: ArticulatedObject, faces: dict) -> None:
+    """A tray decoded sliding out of another face of an oven than its door's (out of its
+    back or side) is turned to slide out of the door's face, where every rack of the data
+    leaves; ``faces`` ((axis, sign) -> members) is updated, and ``_racks`` then places it in
+    the cavity (so not where the prompt places the trays itself). Only with one door face."""
+    doors = [f for f, m in faces.items() if any(obj.parts[c].label in PANELS for c in m)]
+    if len(doors) != 1:
+        return
+    k, s = doors[0]
+    for f in [f for f in faces if f != doors[0]]:
+        for c in [c for c in faces[f] if obj.parts[c].label == "tray"]:
+            j = obj.parts[c].joint
+            j.axis = np.eye(3)[k] * s
+            j.t_range = (0.0, float(max(abs(j.t_range[0]), abs(j.t_range[1]))))
+            faces[f].remove(c)
+            faces[doors[0]].append(c)
+        if not faces[f]:
+            del faces[f]
+
+
 def siblings(obj: ArticulatedObject, cfg: LayoutConfig, report: dict,
              stated: Optional[dict] = None) -> None:
     """Align repeated parts and cut overlapping siblings apart, parent by parent; children
@@ -602,6 +627,8 @@ def siblings(obj: ArticulatedObject, cfg: LayoutConfig, report: dict,
             f = face_of(obj, c)
             if f is not None:
                 faces.setdefault(f, []).append(c)
+        if cfg.fill and obj.category in RACKS and not _placed_trays(stated):
+            _racks_to_the_door(obj, faces)
         for (k, s), members in faces.items():
             heaps: list[tuple] = []
             if cfg.align:
