@@ -512,8 +512,8 @@ def _fill(obj: ArticulatedObject, parent: int, members: list[int], k: int,
 # An oven's racks in the data (model/data/synth/cabinets.py, every tray of the category): wire
 # frames 6.5 mm thick on ledges of the side walls, spanning the cavity between them (3 mm
 # clear of each wall) from 1 cm off the back wall to 4.5 cm behind the front, one at 30 % of
-# the cavity's height or two at 30 % and 65 % (each +-10 %); over v4 objects they span
-# 84-88 % of the body's depth and 91-93 % of its width
+# the cavity's height or two at 30 % and 65 % (each +-10 %); in a 150-object v4 sample they
+# span 84-88 % of the body's depth and 91-93 % of its width
 RACKS = ("Oven",)
 RACK_CLEAR = 0.003        # m from each side wall
 RACK_BACK = 0.01          # m off the back wall
