@@ -8,8 +8,8 @@ import argparse
 
 import numpy as np
 
-from model.core import JointType
 from model.pipeline import GenerationConfig, Generator
+from model.refine.layout import swing_axes
 
 
 def handle_places(obj) -> list[tuple[float, bool]]:
@@ -18,12 +18,10 @@ def handle_places(obj) -> list[tuple[float, bool]]:
     door or lid."""
     out = []
     for i, d in enumerate(obj.parts):
-        if d.label not in ("door", "lid") or d.joint.type != JointType.REVOLUTE:
+        axes = swing_axes(d)
+        if axes is None:
             continue
-        a, k = int(np.argmax(np.abs(d.joint.axis))), int(np.argmin(d.bbox_size))
-        if a == k:
-            continue
-        u = 3 - a - k
+        a, _, u = axes
         w = d.bbox_size[u]
         for c in obj.children(i):
             h = obj.parts[c]

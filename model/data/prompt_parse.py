@@ -354,12 +354,10 @@ def _tidy(out: ExpectedStructure, text: str) -> None:
         if "door" not in named:
             out.counts["door"] = 1
             out.joint_types.setdefault("door", ["revolute"])
-        door = out.spatial.setdefault("door", {})
+        door = out.spatial.get("door", {})
         said = any(w in low for w in ("hinge", "open", "swing", "drop", "flap", "pull-down"))
-        if not door.get("hinge") and not door.get("opens") and not said:
-            door["hinge"], door["opens"] = [side], ["sideways"]
-        elif not door:
-            del out.spatial["door"]
+        if not (door.get("hinge") or door.get("opens") or said):
+            out.spatial["door"] = {**door, "hinge": [side], "opens": ["sideways"]}
     if out.category == "USB" and "lid" in (set(out.counts) | set(out.min_counts)) \
             and "cap" not in out.counts:          # a USB stick's cover is its cap
         _relabel(out, "lid", "cap")

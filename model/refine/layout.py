@@ -36,6 +36,7 @@ SLIDERS = ("drawer", "tray")
 PANELS = ("door", "lid")
 ON_FACE = ("handle", "knob", "dial", "button")
 SMALL = ("knob", "dial", "button", "handle")
+CONTROLS = ("knob", "dial", "button")   # what a hand turns or presses on a face
 FRONT_LABELS = PANELS + SLIDERS    # what closes an opening of a face
 GAP = 0.002            # m between separated siblings
 MIN_KEEP = 0.3         # a box keeps at least this share of its size when cut
@@ -205,6 +206,15 @@ HANDLE_INSET = (0.04, 0.15)   # the data's door handles: centred min(4 cm, 15 % 
 HANDLE_LENGTH = 0.45          # ... running along the hinge for 20-45 % of the door
 
 
+def swing_axes(p) -> Optional[tuple[int, int, int]]:
+    """(hinge axis, panel normal, axis across the swing in the panel's plane) of a door or
+    lid on a revolute joint, or None (another part, or a hinge along its normal)."""
+    if p.label not in PANELS or p.joint.type != JointType.REVOLUTE:
+        return None
+    a, k = _principal(p.joint.axis)[0], int(np.argmin(p.bbox_size))
+    return None if a == k else (a, k, 3 - a - k)
+
+
 def free_edge_handles(obj: ArticulatedObject, stated: Optional[dict] = None) -> int:
     """A handle on the hinge half of a door or lid goes to the free edge, where every handle
     of the data is and where a hand (or gripper) gets leverage: its centre
@@ -218,13 +228,11 @@ def free_edge_handles(obj: ArticulatedObject, stated: Optional[dict] = None) -> 
         return 0
     moved = 0
     for i, p in enumerate(obj.parts):
+        axes = swing_axes(p)
+        if axes is None:
+            continue
+        a, _, u = axes
         j = p.joint
-        if p.label not in PANELS or j.type != JointType.REVOLUTE:
-            continue
-        a, k = _principal(j.axis)[0], int(np.argmin(p.bbox_size))
-        if a == k:
-            continue
-        u = 3 - a - k                            # across the swing, in the panel's plane
         lo, hi = _lohi(p)
         w = hi[u] - lo[u]
         sign = 1.0 if j.origin[u] <= p.bbox_center[u] else -1.0   # from hinge to free edge
@@ -270,7 +278,7 @@ def _neighbours_side(obj: ArticulatedObject, i: int, face: tuple[int, float], a:
     sides = set()
     for c in obj.children(p.parent):
         q = obj.parts[c]
-        if c == i or q.label not in (p.label, "knob", "dial", "button") \
+        if c == i or q.label not in (p.label, *CONTROLS) \
                 or face_of(obj, c) != face:
             continue
         qlo, qhi = _lohi(q)

@@ -243,7 +243,6 @@ def add_runners(obj: ArticulatedObject, mans: dict, max_gap: float = 0.005,
     return added
 
 
-CONTROLS = ("knob", "dial", "button")
 PANEL = 0.015      # m: depth of the plate put behind controls with nothing behind them
 BACKED = 0.3       # share of a control's footprint slab the parent must fill to hold it
 
@@ -256,7 +255,7 @@ def add_control_panels(obj: ArticulatedObject, mans: dict, depth: float = PANEL)
     drawer or lid on that face, ``depth`` deep behind the face, less what other parts
     occupy. Runs before carving (buttons get their pockets from it). Returns the controls
     that were floating."""
-    from .layout import FRONT_LABELS, _lohi, face_of
+    from .layout import CONTROLS, FRONT_LABELS, _lohi, face_of
     mf = meshops._mf()
     floating: dict[tuple, list[int]] = {}
     for c, p in enumerate(obj.parts):

@@ -9,8 +9,8 @@ import numpy as np
 
 from model.core import ArticulatedObject
 
-from .layout import (CLEAR, GAP, MIN_KEEP, PANELS, SLIDERS, SMALL, LayoutConfig, _attach,
-                     _lohi, _move_subtree, _principal, _set, _union, face_of)
+from .layout import (CLEAR, CONTROLS, GAP, MIN_KEEP, PANELS, SLIDERS, SMALL, LayoutConfig,
+                     _attach, _lohi, _move_subtree, _principal, _set, _union, face_of)
 
 CLEAR_SWING = 0.02   # m between a knob, dial or button and a panel edge that swings out
 
@@ -307,7 +307,7 @@ def _clear_panels(obj: ArticulatedObject, members: list[int], k: int) -> int:
 
     for c in members:
         q = obj.parts[c]
-        if q.label not in ("knob", "dial", "button"):
+        if q.label not in CONTROLS:
             continue
         for panel in panels:
             gaps = gaps_of(panel, q)
@@ -328,7 +328,7 @@ def _clear_panels(obj: ArticulatedObject, members: list[int], k: int) -> int:
                 moved += 1
     for c in members:            # then the swinging edges give way, the parts staying put
         q = obj.parts[c]
-        if q.label not in ("knob", "dial", "button"):
+        if q.label not in CONTROLS:
             continue
         for panel in panels:
             gaps = gaps_of(panel, q)
