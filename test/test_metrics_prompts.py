@@ -45,6 +45,14 @@ CASES = [
     ("a cabinet with drawers", "StorageFurniture", {}, {"drawer": 2}, {}),
     ("kitchen cupboard: two swinging doors, no drawers", "StorageFurniture",
      {"door": 2, "drawer": 0}, {}, {"door": ["revolute"]}),
+    # "ones" names the part said last; a count split into groups is counted once
+    ("a chest with one wide drawer and three small ones", "StorageFurniture",
+     {"drawer": 4}, {}, {}),
+    ("a dresser with five drawers: two small ones on top and three large drawers below",
+     "StorageFurniture", {"drawer": 5}, {}, {}),
+    ("A stove with four knobs. Two big ones and two small ones.", "Oven", {"knob": 4}, {}, {}),
+    ("a cabinet with one door and one drawer, plus one door", "StorageFurniture",
+     {"door": 2, "drawer": 1}, {}, {}),
 ]
 
 
@@ -111,6 +119,11 @@ def test_parse_free_form(prompt, category, counts, lower, joints):
     # a place said of a control panel is its controls' place, not the part named before
     ("a washer, door at the bottom, control panel at the top with two dials and six buttons",
      "WashingMachine door=1 dial=2 button=6 door.vpos=bottom dial.vpos=top button.vpos=top"),
+    # the top of the object itself ("on top of the cabinet" stays a place on its top face)
+    ("a cabinet with a drawer at the top of the cabinet and two doors below",
+     "StorageFurniture drawer=1 door=2 drawer.vpos=top door.below=drawer"),
+    ("a fridge-style cabinet with a door at the bottom of the unit", "StorageFurniture door=1 "
+     "door.vpos=bottom"),
 ])
 def test_parse_spatial_wordings(prompt, line):
     assert parse_prompt(prompt).to_json() == ExpectedStructure.from_line(line).to_json()

@@ -13,7 +13,9 @@ What it understands
 * distribution: "each drawer has a handle", "two doors, each with a knob",
   "a handle on every drawer", "one knob per burner" → counts multiplied.
 * lists with sides: "a left door and a right door" → 2 doors; an appositive after a counted
-  plural ("two doors, a left door and a right door") is not counted twice.
+  plural ("two doors, a left door and a right door") is not counted twice, nor is a count
+  split into groups ("five drawers: two small ones on top and three large drawers below").
+* "ones" is the part named last ("one wide drawer and three small ones" → 4 drawers).
 * motion: adjectives ("sliding drawers", "hinged lid") and clauses ("the drawers slide out",
   "a door hinged on the left", "the cap screws off") attach to the nearest part mention;
   generic rotation words ("rotates", "turns", "rotating") accept revolute or continuous.
@@ -65,6 +67,8 @@ class _Mention:
     dist_head: bool = False        # the part a distributive word quantifies ("each drawer")
     single: bool = False           # "the door", "its lid", "porthole door," (one, if nothing
                                    # else counts this part kind)
+    breakdown: bool = False        # splits an earlier count ("five drawers: two small drawers
+                                   # on top and three large ones below"): not counted again
 
 
 def _scan_quantifier(toks: list[_Tok], k: int, m: _Mention, motions: list) -> None:
@@ -153,6 +157,7 @@ def parse_prompt(text: str) -> ExpectedStructure:
     last_part: str | None = None
     earlier_parts: list[str] = []
     for si, sentence in enumerate(_sentences(text)):
+        sentence = _ones_to_parts(sentence, last_part)
         sentence, grid_facts = _rewrite_counts(sentence)
         toks = _tokenize(sentence)
         for lab in _attach(grid_facts + _spatial_facts(sentence, toks), toks, earlier_parts,
@@ -170,6 +175,20 @@ def parse_prompt(text: str) -> ExpectedStructure:
     out.joint_types = _joint_types(motion_links, out.counts)
     _tidy(out, text)
     return out
+
+
+def _ones_to_parts(sentence: str, last_part: str | None) -> str:
+    """"one wide drawer and three small ones" -> "... three small drawers": each "ones" names
+    the part mentioned last before it (in this sentence, else in an earlier one)."""
+    import re
+    out, at = [], 0
+    for m in re.finditer(r"\bones\b", sentence):
+        parts = [t.value for t in _tokenize(sentence[:m.start()]) if t.kind == "PART"]
+        label = parts[-1] if parts else last_part
+        if label:
+            out += [sentence[at:m.start()], label + "s"]
+            at = m.end()
+    return "".join(out) + sentence[at:]
 
 
 def _read_mentions(toks: list[_Tok], si: int, mentions: list[_Mention],
@@ -243,6 +262,7 @@ def _motion_clauses(toks: list[_Tok], skip: set[int],
 def _counts(mentions: list[_Mention]) -> tuple[dict[str, int], dict[str, int]]:
     """(exact counts, lower bounds) per countable label: a first pass without distribution
     gives the counts a distributive mention ("a handle on every drawer") multiplies."""
+    _mark_breakdowns(mentions)
     exact1, _ = _combine(mentions, {})
     exact, lower = _combine(mentions, exact1)
     # "the door is hinged on the left", "porthole door, soap drawer": one of each, when no
@@ -253,6 +273,27 @@ def _counts(mentions: list[_Mention]) -> tuple[dict[str, int], dict[str, int]]:
             exact[lab] = 1
             del lower[lab]
     return exact, lower
+
+
+def _mark_breakdowns(mentions: list[_Mention]) -> None:
+    """A counted mention followed by two or more counted mentions of the same part whose counts
+    add up to it ("four knobs. Two big ones and two small ones."): the later ones describe the
+    same parts."""
+    plain = [m for m in mentions if m.exact and not m.zero and m.dist_of is None]
+    for i, m in enumerate(plain):
+        if m.breakdown:
+            continue
+        group, total = [], 0
+        for n in plain[i + 1:]:
+            if n.label != m.label:
+                continue
+            group.append(n)
+            total += n.exact
+            if total >= m.exact:
+                break
+        if total == m.exact and len(group) >= 2:
+            for n in group:
+                n.breakdown = True
 
 
 def _combine(ms: list[_Mention], base: dict[str, int]) -> tuple[dict, dict]:
@@ -267,6 +308,8 @@ def _combine(ms: list[_Mention], base: dict[str, int]) -> tuple[dict, dict]:
             continue
         if m.zero:
             zero.add(m.label)
+            continue
+        if m.breakdown:
             continue
         if m.exact is not None:
             key = (m.sent, m.label)

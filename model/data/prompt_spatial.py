@@ -172,6 +172,10 @@ _SPATIAL_PATTERNS: list[tuple[str, str, str]] = [
     # "a keypad at the top of its door": the upper part of the panel it sits on
     ("vpos", r"\b(?:at|near) the (top|bottom) (?:part |half |edge )?of (?:the |its |their )?"
              r"(?:front|door|panel|control panel|console)\b", "post"),
+    # "a drawer at the top of the cabinet": the upper part of the object itself
+    ("vpos", r"\b(?:at|near|in) the (top|bottom) (?:part |half |end )?of (?:the |its |this |that )?"
+             r"(?!(?:front|door|panel|control panel|console|drawer|lid|tray|shelf)s?\b)"
+             r"[a-z]+(?: [a-z]+)?\b", "post"),
 ]
 _COMPILED = [(k, re.compile(r), m) for k, r, m in _SPATIAL_PATTERNS]
 _ABOVE = {"above", "over", "on top of"}
