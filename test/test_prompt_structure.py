@@ -3,6 +3,8 @@ structure built from a parsed prompt, and the shipped model decoding under it.""
 from collections import Counter
 import dataclasses
 
+import numpy as np
+
 import pytest
 
 from model.articulation.structure_control import STRUCTURE_GRAMMAR
@@ -101,6 +103,19 @@ def test_shipped_model_reads_the_readme_example_with_every_seed(shipped):
         obj = shipped.layout(t)
         doors = [i for i, p in enumerate(obj.parts) if p.label == "door"]
         assert [part_position(obj, i)[0] for i in doors] == ["left"]
+
+
+def test_shipped_model_builds_the_size_the_prompt_states(shipped):
+    from model.metrics.alignment import alignment_of
+    for text, seed in (("a kitchen cabinet 60 cm wide with two drawers", 0), ("a microwave", 1)):
+        [res] = shipped.generate(text, seed=seed)
+        assert res.obj.metadata["refine"]["size"]["factors"]
+        if text == "a microwave":     # its usual size, not a stated one
+            np.testing.assert_allclose(res.obj.parts[res.obj.root].bbox_size, [0.38, 0.5, 0.3],
+                                       rtol=0.05)
+        else:
+            al = alignment_of(text, res.obj)
+            assert al.spatial.get("size") is True, al.failures
 
 
 def test_shipped_model_without_stated_counts_or_when_off_decodes_freely(shipped):

@@ -69,6 +69,8 @@ class DecodedTree:
                                        # stated by the prompt: GenerationConfig.prompt_structure)
     spatial: Optional[dict] = None     # arrangements and sides the prompt states (label ->
                                        # facts; model.refine.arrange holds them in the layout)
+    size: Optional[dict] = None        # the body's dimensions the prompt states (m;
+                                       # model.refine.size gives them to the layout)
 
     @property
     def num_nodes(self) -> int:

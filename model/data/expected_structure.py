@@ -37,6 +37,8 @@ class ExpectedStructure:
     joint_types: dict[str, list[str]] = field(default_factory=dict)  # acceptable types
     # spatial facts per label (see SPATIAL_KEYS): {"door": {"hinge": ["left"]}, ...}
     spatial: dict[str, dict] = field(default_factory=dict)
+    # the body's stated dimensions in metres (model.data.prompt_size): {"width": 0.6, ...}
+    size: dict[str, float] = field(default_factory=dict)
 
     def to_json(self) -> dict:
         out = {"category": self.category, "counts": dict(self.counts),
@@ -44,12 +46,14 @@ class ExpectedStructure:
                "joint_types": {k: list(v) for k, v in self.joint_types.items()}}
         if self.spatial:
             out["spatial"] = {k: dict(v) for k, v in self.spatial.items()}
+        if self.size:
+            out["size"] = dict(self.size)
         return out
 
     @property
     def is_empty(self) -> bool:
         return not (self.category or self.counts or self.min_counts or self.joint_types
-                    or self.spatial)
+                    or self.spatial or self.size)
 
     @property
     def num_parts(self) -> int:
@@ -68,6 +72,7 @@ class ExpectedStructure:
             for key, v in facts.items():
                 val = "/".join(str(x) for x in v) if isinstance(v, (list, tuple)) else str(v)
                 items.append(f"{lab}.{key}={val}")
+        items += [f"size.{k}={v:g}" for k, v in self.size.items()]
         return " ".join(items)
 
     @classmethod
@@ -82,6 +87,10 @@ class ExpectedStructure:
         out = cls(category=cat)
         labels = set(vocab.COUNTABLE_LABELS)
         for it in items[1:]:
+            m = re.fullmatch(r"size\.(width|height|depth|length)=(\d+(?:\.\d+)?)", it)
+            if m:
+                out.size[m.group(1)] = float(m.group(2))
+                continue
             m = re.fullmatch(r"([a-z]+)\.([a-z]+)=([a-z0-9/]+)", it)
             if m:
                 lab, key, val = m.groups()

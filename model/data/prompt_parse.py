@@ -47,6 +47,7 @@ from .prompt_lexicon import (DEFINITE, DISTRIBUTIVE, EXACT_NUMBER_PHRASES,  # no
                              LOWER_BOUND_WORDS, REVOLUTE_OR_CONTINUOUS, SIDE_ADJECTIVES,
                              STOP_WORDS, ZERO_WORDS, _motion_in_phrase, _sentences, _Tok,
                              _tokenize)
+from .prompt_size import read_size
 from .prompt_spatial import ARRANGED, HINGED, _attach, _rewrite_counts, _spatial_facts  # noqa: F401
 
 
@@ -174,6 +175,7 @@ def parse_prompt(text: str) -> ExpectedStructure:
     out.counts, out.min_counts = _counts(mentions)
     out.joint_types = _joint_types(motion_links, out.counts)
     _tidy(out, text)
+    out.size = read_size(text)
     return out
 
 

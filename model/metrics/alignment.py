@@ -21,7 +21,8 @@ from model.core import ArticulatedObject, JointType
 
 from model.data.prompt_parse import SPATIAL_KINDS, ExpectedStructure, parse_prompt
 
-SPATIAL_KIND_NAMES = ("hinge", "opening", "arrangement", "position")
+SPATIAL_KIND_NAMES = ("hinge", "opening", "arrangement", "position", "size")
+SIZE_TOLERANCE = 0.05   # a stated dimension of the body is right within 5 %
 
 
 @dataclass
@@ -30,6 +31,7 @@ class GeneratedStructure:
     counts: dict[str, int]
     joint_types: dict[str, list[str]]   # label -> joint type name of every part, in order
     spatial: dict[str, dict] = field(default_factory=dict)   # describe.spatial_summary
+    body_size: list[float] | None = None   # the root part's box (depth x, width y, height z)
 
     @classmethod
     def from_object(cls, obj: ArticulatedObject) -> "GeneratedStructure":
@@ -37,6 +39,7 @@ class GeneratedStructure:
         out = cls.from_labels(obj.category or None, [p.label for p in obj.parts],
                               [p.joint.type for p in obj.parts])
         out.spatial = spatial_summary(obj)
+        out.body_size = [float(v) for v in obj.parts[obj.root].bbox_size]
         return out
 
     @classmethod
@@ -87,9 +90,19 @@ def _fact_ok(key: str, want, label: str, got: dict) -> bool:
 
 
 def check_spatial(expected: ExpectedStructure, got: GeneratedStructure) -> tuple[dict, list[str]]:
-    """Per kind (hinge / opening / arrangement / position): are all its stated facts right."""
+    """Per kind (hinge / opening / arrangement / position / size): are all its stated facts
+    right."""
     kinds: dict[str, bool] = {}
     fails: list[str] = []
+    if expected.size and got.body_size is not None:
+        from model.data.prompt_size import AXIS
+        ext = got.body_size
+        for dim, want in expected.size.items():
+            have = max(ext) if dim == "length" else ext[AXIS[dim]]
+            ok = abs(have - want) <= SIZE_TOLERANCE * want
+            kinds["size"] = kinds.get("size", True) and ok
+            if not ok:
+                fails.append(f"size.{dim}: {have:.3f} m != {want:.3f} m")
     for label, facts in expected.spatial.items():
         for key, want in facts.items():
             ok = _fact_ok(key, want, label, got.spatial)

@@ -58,7 +58,7 @@ def freeform_table(bd: dict) -> str:
         return "–" if v is None or not n else f"{100 * v:.1f} % ({n})"
 
     head = ("| prompts | alignment | counts | joints | spatial facts | hinge side | opening "
-            "| arrangement | position |\n|---|---|---|---|---|---|---|---|---|")
+            "| arrangement | position | size |\n|---|---|---|---|---|---|---|---|---|---|")
     lines = [head]
 
     def row(name, s):

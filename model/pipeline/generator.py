@@ -27,6 +27,7 @@ from model.core.runtime import keep_heap_mapped, torch_threads
 from model.pipeline.api import (ExportResult, GeneratedObject, GenerationConfig,
                                 GenerationError)
 from model.pipeline.part_pool import PartPool, default_workers
+from model.data.prompt_size import with_usual_size
 from model.pipeline.prompt_structure import spatial_for
 # checkpoint discovery and request checks, re-exported from their modules
 from model.pipeline.checkpoints import (STAGES, WEIGHTS_DIR, check_codebooks,  # noqa: F401
@@ -219,6 +220,8 @@ class Generator:
             tree.structure = held
             tree.spatial = spatial_for(stated.spatial, tree.category) if stated is not None \
                 else None
+            tree.size = (with_usual_size(prompt, tree.category, stated.size) or None) \
+                if stated is not None else None
         return trees, prompt, modality, timings
 
     def _stated_structure(self, expected, cond, mask, seed: int):
@@ -249,13 +252,17 @@ class Generator:
         layout refinement when ``refine`` (default: the config's) — the arrangements the
         prompt states first (model.refine.arrange, with ``prompt_structure``), then
         model.refine.refine_layout, then the hinge sides a structure asked for, then door
-        handles to their free edge (free_edge_handles)."""
+        handles to their free edge (free_edge_handles). A size the prompt states is given to
+        the body first, refined or not (model.refine.size), unless parts are kept."""
         obj = tree.to_object()
+        report = {} if report is None else report
+        if tree.size and self.config.prompt_structure and not np.any(tree.kept):
+            from model.refine.size import scale_to_size
+            report["size"] = scale_to_size(obj, tree.size)
         if not (self.config.refine if refine is None else refine):
             return obj
         from model.refine import (arrange_stated, free_edge_handles, place_stated_sides,
                                   refine_layout)
-        report = {} if report is None else report
         stated = tree.spatial if self.config.prompt_structure else None
         if stated:
             report["arranged"] = arrange_stated(obj, stated)

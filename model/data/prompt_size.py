@@ -1,0 +1,73 @@
+"""The size a prompt states: "60 cm wide", "1.2 m tall", "a depth of 40 cm", "24 inches high".
+
+``read_size(text)`` -> {"width": m, "height": m, "depth": m} with the dimensions the
+text states, in metres, of the object's body (width across the front, the viewer's left to
+right; height bottom to top; depth front to back). "long" / "length" is the body's longest
+side. A value outside 1 cm - 5 m is not a size a generated object can take and is ignored.
+
+``with_usual_size`` adds the usual size of everyday objects the data lacks at their size for
+the dimensions the text leaves open (``NAMED_SIZES``: a microwave is read as an oven, whose
+data is 45-95 cm tall, so without it "a microwave" came out oven-sized).
+"""
+from __future__ import annotations
+
+import re
+
+DIMENSIONS = ("width", "height", "depth", "length")
+AXIS = {"depth": 0, "width": 1, "height": 2}   # the object frame: x front-back, y left-right
+
+_UNITS = {"mm": 0.001, "millimeter": 0.001, "millimetre": 0.001,
+          "cm": 0.01, "centimeter": 0.01, "centimetre": 0.01,
+          "m": 1.0, "meter": 1.0, "metre": 1.0,
+          "in": 0.0254, "inch": 0.0254, "inches": 0.0254, '"': 0.0254,
+          "ft": 0.3048, "foot": 0.3048, "feet": 0.3048}
+_WORDS = {"wide": "width", "width": "width", "across": "width",
+          "tall": "height", "high": "height", "height": "height", "in height": "height",
+          "deep": "depth", "depth": "depth", "in depth": "depth", "in width": "width",
+          "long": "length", "length": "length", "in length": "length"}
+_NUM = r"(\d+(?:[.,]\d+)?)"
+_UNIT = (r"(mm|millimet(?:er|re)s?|cm|centimet(?:er|re)s?|meters?|metres?|m|inch(?:es)?|in|\"|"
+         r"ft|foot|feet)")
+_AFTER = re.compile(rf"\b{_NUM}\s*-?\s*{_UNIT}(?![a-z])\s*-?\s*"
+                    r"(wide|tall|high|deep|long|across|in (?:width|height|depth|length))\b")
+_BEFORE = re.compile(r"\b(width|height|depth|length)\s*(?:of|is|:|=|about|around|approx\.?)?\s*"
+                     rf"(?:about |around |roughly )?{_NUM}\s*{_UNIT}(?![a-z])")
+LIMITS = (0.01, 5.0)
+
+# usual sizes (m) of everyday names whose category's data is another size
+NAMED_SIZES: dict[str, list[tuple[tuple[str, ...], dict[str, float]]]] = {
+    "Oven": [(("microwave",), {"width": 0.50, "height": 0.30, "depth": 0.38}),
+             (("toaster oven", "countertop oven"), {"width": 0.45, "height": 0.27, "depth": 0.36})],
+}
+
+
+def _unit(word: str) -> float:
+    return _UNITS[word[:-1] if word.endswith("s") and word != "inches" else word]
+
+
+def read_size(text: str) -> dict[str, float]:
+    """The body dimensions ``text`` states, in metres (see the module docstring)."""
+    low = text.lower().replace("\u201d", '"')
+    out: dict[str, float] = {}
+    hits = [(m.start(), m.group(1), m.group(2), m.group(3)) for m in _AFTER.finditer(low)]
+    hits += [(m.start(), m.group(2), m.group(3), m.group(1)) for m in _BEFORE.finditer(low)]
+    for _, num, unit, word in sorted(hits):
+        value = float(num.replace(",", ".")) * _unit(unit)
+        dim = _WORDS[word]
+        if LIMITS[0] <= value <= LIMITS[1] and dim not in out:
+            out[dim] = round(value, 4)
+    return out
+
+
+def with_usual_size(text: str, category: str | None, stated: dict | None) -> dict:
+    """``stated`` with the usual size of an everyday name in ``text`` (``NAMED_SIZES``) for
+    the dimensions it leaves open: what generation gives the body ("a microwave" is
+    microwave-sized). Not a stated fact: the alignment metric checks ``stated`` only."""
+    out = dict(stated or {})
+    low = text.lower()
+    for names, usual in NAMED_SIZES.get(category or "", []):
+        if any(re.search(rf"\b{n}s?\b", low) for n in names) and "length" not in out:
+            for dim, value in usual.items():
+                out.setdefault(dim, value)
+            break
+    return out

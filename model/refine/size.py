@@ -1,0 +1,52 @@
+"""The size a prompt states, given to a decoded layout before it is refined and meshed.
+
+``scale_to_size(obj, {"width": 0.6})`` scales the object about the bottom centre of its body so
+the body's box takes the stated dimensions (width along y, height along z, depth along x;
+"length" is the body's longest side). An axis the prompt leaves open takes the geometric mean
+of the stated axes' factors, so one stated dimension keeps the proportions. The body and its
+panels (doors, drawers, lids, trays) take the factors per axis; handles, knobs, dials,
+buttons and caps keep their own size when the object grows and shrink with it (by the mean
+factor, so a knob stays round) when it shrinks; joint origins and slide travel follow.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from model.core import ArticulatedObject
+from model.data.prompt_size import AXIS
+
+PANELS = ("body", "door", "drawer", "lid", "tray")
+
+
+def size_factors(extent: np.ndarray, size: dict) -> np.ndarray:
+    """Per-axis (x, y, z) factors that take a box of ``extent`` to the stated ``size``."""
+    extent = np.maximum(np.asarray(extent, dtype=np.float64), 1e-6)
+    s = np.full(3, np.nan)
+    for dim, value in size.items():
+        ax = int(np.argmax(extent)) if dim == "length" else AXIS[dim]
+        if np.isnan(s[ax]):
+            s[ax] = float(value) / extent[ax]
+    stated = s[~np.isnan(s)]
+    s[np.isnan(s)] = float(np.exp(np.log(stated).mean()))
+    return s
+
+
+def scale_to_size(obj: ArticulatedObject, size: dict | None) -> dict | None:
+    """Scale ``obj`` in place so its body has the stated ``size`` (m); the factors applied,
+    or None when nothing is stated."""
+    if not size:
+        return None
+    body = obj.parts[obj.root]
+    s = size_factors(body.bbox_size, size)
+    pivot = body.bbox_center - np.array([0.0, 0.0, body.bbox_size[2] / 2.0])
+    small = min(1.0, float(np.prod(s)) ** (1.0 / 3.0))
+    for p in obj.parts:
+        p.bbox_center = pivot + (p.bbox_center - pivot) * s
+        p.bbox_size = p.bbox_size * (s if p.label in PANELS else small)
+        j = p.joint
+        j.origin = pivot + (j.origin - pivot) * s
+        if j.type.translates:
+            a = np.asarray(j.axis, dtype=np.float64)
+            f = float(np.linalg.norm(a * s) / max(np.linalg.norm(a), 1e-9))
+            j.t_range = (j.t_range[0] * f, j.t_range[1] * f)
+    return {"factors": [round(float(v), 4) for v in s], "controls": round(small, 4)}

@@ -1,0 +1,89 @@
+"""Sizes a prompt states: read (model.data.prompt_size), given to the layout
+(model.refine.size) and checked by the alignment metric."""
+import numpy as np
+import pytest
+
+from model.core import ArticulatedObject, Joint, JointType, Part
+from model.data.expected_structure import ExpectedStructure
+from model.data.prompt_parse import parse_prompt
+from model.data.prompt_size import read_size, with_usual_size
+from model.metrics.alignment import GeneratedStructure, check_alignment
+from model.refine.size import scale_to_size, size_factors
+
+
+@pytest.mark.parametrize("text,size", [
+    ("a kitchen cabinet 60 cm wide with two drawers", {"width": 0.6}),
+    ("A dresser, 1.20 m wide, 0.50 m deep and 0.90 m tall.",
+     {"width": 1.2, "depth": 0.5, "height": 0.9}),
+    ("a 60-cm-wide cabinet, 40 centimetres deep", {"width": 0.6, "depth": 0.4}),
+    ("a cabinet with a width of 90 cm and a height: 2 m", {"width": 0.9, "height": 2.0}),
+    ('a 24" wide dishwasher', {"width": 0.6096}),
+    ("a locker 6 feet tall", {"height": 1.8288}),
+    ("a 6 cm long thumb drive", {"length": 0.06}),
+    ("a 300 mm high safe", {"height": 0.3}),
+    # no axis word, or no size an object takes: nothing
+    ("a cabinet 60 x 40 cm with two drawers", {}),
+    ("a safe 100 m tall", {}),
+    ("with 2 drawers in a row", {}),
+])
+def test_stated_sizes_are_read_in_metres(text, size):
+    assert read_size(text) == pytest.approx(size)
+
+
+def test_a_microwave_has_a_microwaves_size_unless_the_prompt_says_otherwise():
+    assert parse_prompt("a microwave").size == {}          # a default, not a stated fact
+    assert with_usual_size("a microwave", "Oven", {}) == \
+        {"width": 0.5, "height": 0.3, "depth": 0.38}
+    assert with_usual_size("a microwave 55 cm wide", "Oven", {"width": 0.55})["width"] == 0.55
+    assert with_usual_size("a toaster oven with two knobs", "Oven", {})["height"] == 0.27
+    assert with_usual_size("a microwave-sized safe", "Safe", {}) == {}
+    assert with_usual_size("an oven with two racks", "Oven", {}) == {}
+
+
+def test_size_round_trips_through_the_annotation_line():
+    e = parse_prompt("a cabinet 60 cm wide and 80 cm tall with two drawers")
+    line = e.to_line()
+    assert "size.width=0.6" in line and "size.height=0.8" in line
+    assert ExpectedStructure.from_line(line).to_json() == e.to_json()
+
+
+def _cabinet() -> ArticulatedObject:
+    body = Part("body", "body", -1, bbox_center=[0, 0, 0.5], bbox_size=[0.5, 0.8, 1.0])
+    drawer = Part("drawer", "drawer", 0, bbox_center=[0.02, 0, 0.8], bbox_size=[0.46, 0.7, 0.2],
+                  joint=Joint(JointType.PRISMATIC, origin=[0.25, 0, 0.8], axis=[1, 0, 0],
+                              t_range=(0, 0.3)))
+    knob = Part("knob", "handle", 1, bbox_center=[0.27, 0, 0.8], bbox_size=[0.03, 0.03, 0.03],
+                joint=Joint(JointType.FIXED, origin=[0.27, 0, 0.8]))
+    return ArticulatedObject([body, drawer, knob], category="StorageFurniture")
+
+
+def test_scaling_gives_the_body_its_size_and_keeps_it_on_the_floor():
+    obj = _cabinet()
+    report = scale_to_size(obj, {"width": 1.6})
+    body, drawer, knob = obj.parts
+    # one stated dimension keeps the proportions
+    np.testing.assert_allclose(body.bbox_size, [1.0, 1.6, 2.0])
+    assert body.bbox_center[2] - body.bbox_size[2] / 2 == pytest.approx(0.0)
+    np.testing.assert_allclose(drawer.bbox_size, [0.92, 1.4, 0.4])
+    assert drawer.joint.t_range[1] == pytest.approx(0.6)          # travel follows the depth
+    np.testing.assert_allclose(drawer.joint.origin, [0.5, 0, 1.6])
+    np.testing.assert_allclose(knob.bbox_size, [0.03] * 3)         # a knob keeps its size
+    assert report["factors"] == [2.0, 2.0, 2.0]
+    # shrinking: the knob shrinks with the object and stays round
+    obj = _cabinet()
+    scale_to_size(obj, {"height": 0.5, "depth": 0.25})
+    np.testing.assert_allclose(obj.parts[0].bbox_size, [0.25, 0.4, 0.5])
+    np.testing.assert_allclose(obj.parts[2].bbox_size, [0.015] * 3)
+    assert scale_to_size(obj, {}) is None
+    np.testing.assert_allclose(size_factors([0.5, 0.8, 1.0], {"length": 2.0}), [2.0] * 3)
+
+
+def test_alignment_checks_the_stated_size_within_five_percent():
+    obj = _cabinet()
+    want = parse_prompt("a cabinet 80 cm wide and 1 m tall with a drawer")
+    res = check_alignment(want, GeneratedStructure.from_object(obj))
+    assert res.spatial == {"size": True}
+    res = check_alignment(parse_prompt("a cabinet 60 cm wide with a drawer"),
+                          GeneratedStructure.from_object(obj))
+    assert res.spatial == {"size": False} and res.failures == ["size.width: 0.800 m != 0.600 m"]
+
