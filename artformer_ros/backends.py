@@ -34,12 +34,13 @@ class ModelBackend:
         self._settings = settings   # live: preview and mesh_uri are read per request
 
     def generate(self, *, text: Optional[str], image: Optional[np.ndarray], seed: int,
-                 samples: int, structure: Optional[dict] = None) -> list:
+                 samples: int, structure: Optional[dict] = None,
+                 size: Optional[dict] = None) -> list:
         if image is not None:
             return self.generator.generate(image=image, seed=seed, samples=samples,
-                                           structure=structure)
+                                           structure=structure, size=size)
         return self.generator.generate(text=text, seed=seed, samples=samples,
-                                       structure=structure)
+                                       structure=structure, size=size)
 
     def export(self, result, out_dir: str):
         # the node draws preview.png after publishing (GenerationService._write_previews)
@@ -67,9 +68,15 @@ class ExampleBackend:
         return self._cache[key].copy()
 
     def generate(self, *, text: Optional[str], image: Optional[np.ndarray], seed: int,
-                 samples: int, structure: Optional[dict] = None) -> list:
+                 samples: int, structure: Optional[dict] = None,
+                 size: Optional[dict] = None) -> list:
         from model.core.example import structure_mismatch
         from model.pipeline.api import GeneratedObject, GenerationError
+
+        if size is not None:
+            raise GenerationError("the example backend (no model) only has its built-in "
+                                  "objects at their own size; run the node with "
+                                  "backend:=model for a size")
 
         key = "bottle" if text and "bottle" in text.lower() else "cabinet"
         if structure is not None:

@@ -30,7 +30,7 @@ IMAGE_ENCODINGS: dict[str, int] = {"rgb8": 3, "bgr8": 3, "rgba8": 4, "bgra8": 4,
 
 MAX_ID_LENGTH = 128
 SEED_MAX = 2**31 - 1
-_TEXT_KEYS = ("id", "text", "seed", "structure")
+_TEXT_KEYS = ("id", "text", "seed", "structure", "size")
 
 
 class RequestError(ValueError):
@@ -48,6 +48,7 @@ class TextRequest:
     seed: Optional[int]       # None = use the node's seed policy
     id_given: bool            # the client chose the id (JSON payload) vs. assigned by the node
     structure: Optional[dict] = None   # parts to force (model.pipeline.api.parse_structure)
+    size: Optional[dict] = None        # the body's dimensions, m (model.data.prompt_size)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -106,7 +107,7 @@ def parse_text_request(payload: bytes | str, *, max_length: int, assigned_id: st
 
     ``payload`` is plain text (the id becomes ``assigned_id``) or a JSON object
     ``{"text": str, "id": str|int (optional), "seed": int (optional), "structure": object
-    (optional, docs/ros.md)}``; a payload whose first non-blank character is ``{`` must be such
+    (optional, docs/ros.md), "size": object (optional, e.g. {"width": 0.6})}``; a payload whose first non-blank character is ``{`` must be such
     an object. A structure's form is checked here; whether the model can produce it, by the
     backend.
     """
@@ -150,8 +151,15 @@ def parse_text_request(payload: bytes | str, *, max_length: int, assigned_id: st
             structure = parse_structure(structure).to_dict()
         except GenerationError as err:
             raise RequestError(str(err), rid) from None
+    size = obj.get("size")
+    if size is not None:
+        from model.data.prompt_size import parse_size
+        try:
+            size = parse_size(size)
+        except ValueError as err:
+            raise RequestError(str(err), rid) from None
     return TextRequest(rid, _check_text(obj["text"], max_length, rid), seed, "id" in obj,
-                       structure)
+                       structure, size)
 
 
 def slug(text: str, max_length: int = 40) -> str:

@@ -2,7 +2,7 @@
 
 Topics (relative names, remappable):
   sub  text_request       std_msgs/String     plain text, or JSON {"text", "id"?, "seed"?,
-                                               "structure"?}
+                                               "structure"?, "size"?}
   sub  image_request      sensor_msgs/Image   rgb8 | bgr8 | rgba8 | bgra8 | mono8;
                                               request id = header.frame_id (else image-<n>);
                                               best effort: matches camera drivers and
@@ -199,7 +199,7 @@ class GeneratorNode(Node):
             return
         self.get_logger().info(f"text request {req.request_id}: {req.text[:80]!r}")
         self.service.submit(Job(req.request_id, "text", text=req.text, seed=req.seed,
-                                structure=req.structure))
+                                structure=req.structure, size=req.size))
 
     def _on_image(self, msg: Image) -> None:
         rid = msg.header.frame_id.strip()

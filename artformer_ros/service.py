@@ -58,8 +58,8 @@ class Backend(Protocol):
 
     def generate(self, *, text: Optional[str], image: Optional[np.ndarray], seed: int,
                  samples: int) -> list: ...
-    # a request with a ``structure`` calls generate(..., structure=dict); a backend that
-    # cannot honour one raises GenerationError (the request gets an error result)
+    # a request with a ``structure`` / ``size`` calls generate(..., structure=dict / size=
+    # dict); a backend that cannot honour one raises GenerationError (an error result)
 
     def export(self, result: Any, out_dir: str) -> Any: ...
 
@@ -72,6 +72,7 @@ class Job:
     image: Optional[np.ndarray] = None     # (H, W, 3) uint8 RGB of an image request
     seed: Optional[int] = None             # None: the node's seed policy
     structure: Optional[dict] = None       # parts to force (docs/ros.md), form already checked
+    size: Optional[dict] = None            # the body's dimensions, m, form already checked
     received: float = field(default_factory=time.monotonic)
 
     @property
@@ -355,7 +356,8 @@ class GenerationService:
         seed, samples = self._seed_for(job), self.settings.samples
         base = {"seed": seed, "backend": self._backend.name}
         try:
-            extra = {} if job.structure is None else {"structure": job.structure}
+            extra = {k: v for k, v in (("structure", job.structure), ("size", job.size))
+                     if v is not None}
             outs = self._backend.generate(text=job.text, image=job.image, seed=seed,
                                           samples=samples, **extra)
         except GenerationError as err:
@@ -440,6 +442,7 @@ class GenerationService:
         return {"id": job.request_id, "status": "done", "kind": job.kind, "prompt": job.prompt,
                 "seed": seed, "backend": self._backend.name, "message": "ok",
                 **({"structure": job.structure} if job.structure is not None else {}),
+                **({"size": job.size} if job.size is not None else {}),
                 "output_dir": folder, "urdf_path": first["urdf_path"],
                 "mesh_paths": first["mesh_paths"], "metadata_path": first["metadata_path"],
                 "preview_path": first["preview_path"],

@@ -14,7 +14,8 @@ def generate(text=None, *, image=None, seed=0, samples=1, structure=None, **kwar
     """Generate articulated objects from a text (or an image) with the shipped model.
 
     ``structure`` forces the parts, e.g. ``{"drawer": 3, "door": {"count": 1, "hinge":
-    "left"}}`` (labels, counts, joint types, hinge sides; docs/articulation.md). Thin
+    "left"}}`` (labels, counts, joint types, hinge sides; docs/articulation.md); ``size=
+    {"width": 0.6}`` gives the body its dimensions in metres (docs/structure.md). Thin
     convenience wrapper over ``model.pipeline.Generator`` (loaded once, cached).
     """
     from model.pipeline import default_generator

@@ -116,6 +116,14 @@ def test_shipped_model_builds_the_size_the_prompt_states(shipped):
         else:
             al = alignment_of(text, res.obj)
             assert al.spatial.get("size") is True, al.failures
+    # a size given outright wins over the text's, for images too; a bad one is refused
+    trees, *_ = shipped.decode_trees("a cabinet 60 cm wide with two drawers", seed=0,
+                                     size={"width": 0.9, "depth": 0.4})
+    assert trees[0].size == {"width": 0.9, "depth": 0.4}
+    np.testing.assert_allclose(shipped.layout(trees[0]).parts[0].bbox_size[:2], [0.4, 0.9])
+    from model.pipeline.api import GenerationError
+    with pytest.raises(GenerationError, match="unknown dimension 'tall'"):
+        shipped.decode_trees("a cabinet", size={"tall": 1.0})
 
 
 def test_shipped_model_without_stated_counts_or_when_off_decodes_freely(shipped):

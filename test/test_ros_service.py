@@ -414,6 +414,41 @@ def test_json_structure_requests_reach_the_backend_and_bad_ones_get_error_result
     h.svc.stop(1)
 
 
+class SizeBackend(StructureBackend):
+    def generate(self, *, text, image, seed, samples, structure=None, size=None):
+        self.calls.append((text, size))
+        return [GeneratedObject(obj=None, prompt=text, seed=seed, timings={})]
+
+
+def test_json_size_requests_reach_the_backend_and_bad_ones_get_error_results(tmp_path):
+    from artformer_ros.backends import ExampleBackend
+    from artformer_ros.conversions import RequestError, parse_text_request
+    req = parse_text_request(json.dumps({"id": "z1", "text": "a cabinet",
+                                         "size": {"width": 0.6, "height": 1}}),
+                             max_length=100, assigned_id="text-1")
+    assert req.size == {"width": 0.6, "height": 1.0}
+    for bad, words in (([0.6], "an object"), ({"wide": 0.6}, "unknown dimension"),
+                       ({"width": 60}, "metres"), ({"width": True}, "metres")):
+        with pytest.raises(RequestError, match=words) as err:
+            parse_text_request(json.dumps({"id": "z2", "text": "x", "size": bad}),
+                               max_length=100, assigned_id="t")
+        assert err.value.request_id == "z2"
+    h = Harness(tmp_path, backend=SizeBackend())
+    h.svc.start()
+    assert h.svc.wait_ready(5)
+    h.svc.submit(Job("sized", "text", text="a cabinet", size=req.size))
+    h.svc.submit(Job("plain", "text", text="a cabinet"))
+    h.wait_answers(2)
+    ids = h.by_id()
+    assert ids["sized"][0]["status"] == "done" and ids["sized"][0]["size"] == req.size
+    assert ids["plain"][0]["status"] == "done" and "size" not in ids["plain"][0]
+    assert h.backend.calls == [("a cabinet", req.size), ("a cabinet", None)]
+    h.svc.stop(1)
+    backend = ExampleBackend(NodeSettings(backend="example", output_dir=str(tmp_path)))
+    with pytest.raises(GenerationError, match="example backend.*size"):
+        backend.generate(text="a cabinet", image=None, seed=0, samples=1, size=req.size)
+
+
 def test_the_example_backend_honours_its_own_structures_and_refuses_others(tmp_path):
     from artformer_ros.backends import ExampleBackend
     from model.core.example import structure_mismatch

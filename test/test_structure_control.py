@@ -318,4 +318,10 @@ def test_cli_structure_errors_come_before_the_model_loads(tmp_path, capsys):
     with pytest.raises(SystemExit):
         main(["generate", "--prompts", "p.txt", "--structure", '{"drawer": 1}', "--out",
               str(tmp_path / "o")])
+    assert main(["generate", "a cabinet", "--size", '{"width": 100}', "--out",
+                 str(tmp_path / "o")]) == 1
+    assert "width must be a number of metres" in capsys.readouterr().err
+    with pytest.raises(SystemExit):
+        main(["generate", "--prompts", "p.txt", "--size", '{"width": 1}', "--out",
+              str(tmp_path / "o")])
     assert not (tmp_path / "o").exists()

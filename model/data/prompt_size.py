@@ -59,6 +59,29 @@ def read_size(text: str) -> dict[str, float]:
     return out
 
 
+def parse_size(spec) -> dict[str, float]:
+    """A size given outright (API, ``--size``, the node's JSON request): ``{"width": 0.6,
+    "height": 0.8}`` in metres, or its JSON text. ValueError saying what is wrong."""
+    import json
+    if isinstance(spec, str):
+        try:
+            spec = json.loads(spec)
+        except json.JSONDecodeError as e:
+            raise ValueError(f"size is not valid JSON: {e.msg}") from None
+    if not isinstance(spec, dict) or not spec:
+        raise ValueError('a size is an object such as {"width": 0.6, "height": 0.8} (metres)')
+    out = {}
+    for dim, value in spec.items():
+        if dim not in DIMENSIONS:
+            raise ValueError(f"size: unknown dimension {dim!r} (one of {list(DIMENSIONS)})")
+        if isinstance(value, bool) or not isinstance(value, (int, float)) \
+                or not LIMITS[0] <= value <= LIMITS[1]:
+            raise ValueError(f"size: {dim} must be a number of metres in "
+                             f"[{LIMITS[0]}, {LIMITS[1]}], got {value!r}")
+        out[dim] = float(value)
+    return out
+
+
 def with_usual_size(text: str, category: str | None, stated: dict | None) -> dict:
     """``stated`` with the usual size of an everyday name in ``text`` (``NAMED_SIZES``) for
     the dimensions it leaves open: what generation gives the body ("a microwave" is

@@ -95,6 +95,9 @@ def _generate(argv: list[str]) -> int:
                    help="force the parts, e.g. '{\"drawer\": 3, \"door\": {\"count\": 1, "
                         "\"hinge\": \"left\"}}' (labels, counts, joint types, hinge sides; "
                         "docs/articulation.md)")
+    p.add_argument("--size", metavar="JSON",
+                   help="the body's dimensions in metres, e.g. '{\"width\": 0.6, \"height\": "
+                        "0.8}' (width, height, depth, length; over any the text states)")
     p.add_argument("--out", required=True, help="output folder (sample_<i>/ inside when --samples > 1)")
     b = p.add_argument_group("batch (model/pipeline/batch.py)")
     b.add_argument("--prompts", metavar="FILE",
@@ -113,8 +116,8 @@ def _generate(argv: list[str]) -> int:
     if a.prompts is not None:
         if a.text is not None or a.image is not None:
             p.error("--prompts replaces TEXT / --image; give one of them")
-        if a.structure is not None:
-            p.error("--structure applies to one TEXT or --image, not to --prompts")
+        if a.structure is not None or a.size is not None:
+            p.error("--structure and --size apply to one TEXT or --image, not to --prompts")
         return _batch(a)
     if (a.text is None) == (a.image is None):
         p.error("give a TEXT or --image (exactly one)")
@@ -125,9 +128,16 @@ def _generate(argv: list[str]) -> int:
         if a.structure is not None:
             from model.pipeline.api import parse_structure
             structure = parse_structure(a.structure)    # bad JSON fails before the model loads
+        size = None
+        if a.size is not None:
+            from model.data.prompt_size import parse_size
+            try:
+                size = parse_size(a.size)
+            except ValueError as e:
+                raise GenerationError(str(e)) from None
         gen = Generator.load(_config(a))
         results = gen.generate(a.text, image=a.image, seed=a.seed, samples=a.samples,
-                               structure=structure)
+                               structure=structure, size=size)
         outs = []
         for i, r in enumerate(results):
             d = Path(a.out) if len(results) == 1 else Path(a.out) / f"sample_{i}"

@@ -109,7 +109,7 @@ class Generator:
     # -- generation -------------------------------------------------------------------------
     def generate(self, text: Optional[str] = None, *, image=None, seed: int = 0, samples: int = 1,
                  keep: Optional[ArticulatedObject] = None,
-                 structure=None) -> list[GeneratedObject]:
+                 structure=None, size=None) -> list[GeneratedObject]:
         """Generate ``samples`` objects for a text or an image (not both).
 
         Sample i uses seed ``seed + i`` everywhere, so the same seed gives the same object.
@@ -117,7 +117,8 @@ class Generator:
         meshes; only new parts get geometry. ``structure`` (a dict or its JSON text, see
         ``model.pipeline.api.parse_structure`` and docs/articulation.md): the parts every
         sample must have, forced during decoding; GenerationError before any decoding when
-        the model cannot produce it.
+        the model cannot produce it. ``size`` (a dict or its JSON text, e.g. ``{"width":
+        0.6}``, metres): the body's dimensions, over any the text states (docs/structure.md).
         """
         import torch
 
@@ -127,7 +128,7 @@ class Generator:
         seed = int(seed)
         trees, prompt, modality, timings = self.decode_trees(text, image=image, seed=seed,
                                                              samples=samples, keep=keep,
-                                                             structure=spec)
+                                                             structure=spec, size=size)
 
         results = []
         for i, tree in enumerate(trees):
@@ -140,24 +141,31 @@ class Generator:
                 obj.metadata["structure"] = spec.to_dict()
             elif tree.structure is not None:      # the parts the prompt states, held
                 obj.metadata["prompt_structure"] = tree.structure
+            if tree.size:
+                obj.metadata["size"] = dict(tree.size)    # the body's, m (asked or stated)
             results.append(GeneratedObject(obj=obj, prompt=prompt, seed=seed + i, timings=tim))
         return results
 
     def decode_trees(self, text: Optional[str] = None, *, image=None, seed: int = 0,
                      samples: int = 1, keep: Optional[ArticulatedObject] = None,
-                     structure=None) -> tuple[list, str, str, dict]:
+                     structure=None, size=None) -> tuple[list, str, str, dict]:
         """The first stages of :meth:`generate` alone: condition -> decoded part trees
         (``model.articulation.DecodedTree``: labels, joint types, boxes; no shapes, no
         meshes). Returns (trees, prompt, modality, timings); the same seed gives the trees
         that :meth:`generate` meshes."""
         import torch
 
+        from model.data.prompt_size import parse_size
         from model.pipeline.api import parse_structure
 
         if (text is None) == (image is None):
             raise GenerationError("give a text or an image (exactly one)")
         if not 1 <= int(samples) <= 16:
             raise GenerationError(f"samples must be between 1 and 16, got {samples}")
+        try:
+            given = None if size is None else parse_size(size)
+        except ValueError as e:
+            raise GenerationError(str(e)) from None
         spec = splan = None
         if structure is not None:
             if keep is not None:
@@ -220,8 +228,8 @@ class Generator:
             tree.structure = held
             tree.spatial = spatial_for(stated.spatial, tree.category) if stated is not None \
                 else None
-            tree.size = (with_usual_size(prompt, tree.category, stated.size) or None) \
-                if stated is not None else None
+            said = with_usual_size(prompt, tree.category, stated.size) if stated else {}
+            tree.size = {**said, **(given or {})} or None
         return trees, prompt, modality, timings
 
     def _stated_structure(self, expected, cond, mask, seed: int):
@@ -256,7 +264,7 @@ class Generator:
         the body first, refined or not (model.refine.size), unless parts are kept."""
         obj = tree.to_object()
         report = {} if report is None else report
-        if tree.size and self.config.prompt_structure and not np.any(tree.kept):
+        if tree.size and not np.any(tree.kept):
             from model.refine.size import scale_to_size
             report["size"] = scale_to_size(obj, tree.size)
         if not (self.config.refine if refine is None else refine):
