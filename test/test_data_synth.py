@@ -108,6 +108,21 @@ def test_variety_of_layouts_and_counts():
     assert max(max(moving), max(len(o.movable_parts()) for o in big)) >= 12
 
 
+def test_drawers_are_wider_than_tall_and_tall_bands_become_rows():
+    """synth-7: no drawer front taller than 1.2 x its width (synth-6 drew 17 cm wide, 75 cm
+    tall drawers side by side in a fifth of its cabinets with drawers); a tall band of
+    drawers becomes rows."""
+    from model.data.synth.cabinets import DRAWER_ASPECT
+    rows = 0
+    for i in range(30):
+        o = synth.generate_object(seed=2, index=i, category="StorageFurniture")
+        drawers = [p for p in o.parts if p.label == "drawer"]
+        for p in drawers:
+            assert p.bbox_size[2] <= DRAWER_ASPECT * p.bbox_size[1] + 0.01, (i, p.bbox_size)
+        rows = max(rows, len({round(float(p.bbox_center[2]), 2) for p in drawers}))
+    assert rows >= 3
+
+
 def test_category_specific_joints():
     bottles = [synth.generate_object(seed=2, index=i, category="Bottle") for i in range(8)]
     kinds = {o.parts[o.movable_parts()[0]].joint.type for o in bottles}

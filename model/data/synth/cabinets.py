@@ -21,6 +21,10 @@ from .builder import (
 )
 from .carcass import _carcass, _Cell, _door, _drawer, _split
 
+DRAWER_ASPECT = 1.2   # a drawer front's height over its width, at most
+DRAWER_BAND = 0.45    # m: a band of drawers at least this tall is split into rows
+
+
 def _gen_storage(rng, b: _Builder) -> None:
     W = _u(rng, 0.4, 1.6)
     D = _u(rng, 0.35, 0.6)
@@ -34,16 +38,30 @@ def _gen_storage(rng, b: _Builder) -> None:
     n_bands = int(rng.integers(1, max_bands + 1))
     bands = _split(rng, H - plinth, n_bands, t, 0.12)
     cells: list[_Cell] = []
-    for bi, (bz0, bz1) in enumerate(bands):
-        bz0, bz1 = bz0 + plinth, bz1 + plinth
+    queue = [(z0 + plinth, z1 + plinth, None) for z0, z1 in bands]
+    bi = -1
+    while queue:
+        bz0, bz1, kind = queue.pop(0)
+        bi += 1
         bh = bz1 - bz0
         kinds = ["drawers", "doors", "flip", "open"]
         p = np.array([0.45 if bh < 0.45 else 0.15, 0.25 if bh > 0.2 else 0.0,
                       0.15 if bh < 0.5 else 0.02, 0.08])
-        kind = _pick(rng, kinds, p / p.sum())
+        kind = kind or _pick(rng, kinds, p / p.sum())
+        if kind == "drawers" and bh >= DRAWER_BAND:
+            # a tall band of drawers becomes rows of drawers (synth-6 drew 17 cm wide, 75 cm
+            # tall "drawers" side by side): no front taller than DRAWER_ASPECT x its width
+            rows = int(np.ceil(bh / DRAWER_BAND))
+            queue[0:0] = [(bz0 - t + z0, bz0 - t + z1, "drawers")
+                          for z0, z1 in _split(rng, bh + 2 * t, rows, t, 0.1, 0.15)]
+            bi -= 1
+            continue
         max_cols = int(np.clip(W / 0.22, 1, 4))
         if kind == "drawers":
-            n = int(rng.integers(1, max_cols + 1))
+            # columns whose average width is bh / DRAWER_ASPECT; _split's jitter (0.15) can
+            # make one 15 % narrower than the average
+            fit = int((W - t) // (1.2 * bh / DRAWER_ASPECT + t))
+            n = int(rng.integers(1, int(np.clip(fit, 1, max_cols)) + 1))
             for ci, (y0, y1) in enumerate(_split(rng, W, n, t, 0.12, 0.15)):
                 cells.append(_Cell(y0 - W / 2, y1 - W / 2, bz0, bz1, "drawer", band=bi, col=ci))
         elif kind == "doors":
