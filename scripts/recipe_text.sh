@@ -17,10 +17,10 @@ set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 source scripts/env.sh
 
-NAME=${NAME:-v4}
+NAME=${NAME:-v5}                         # the data: synth-7 objects (tall drawers split into rows)
 DATA=${DATA:-data/prepared/$NAME}
 RENDERS=${RENDERS:-data/renders/$NAME}
-GEOMETRY=${GEOMETRY:-runs/geometry_${NAME}}
+GEOMETRY=${GEOMETRY:-runs/geometry_v4}   # the shape prior, trained on synth-v4 parts
 PRESET=${PRESET:-small}
 PRIOR=${PRIOR:-$GEOMETRY/prior_small-fine.pt}
 SDF=${SDF:-$GEOMETRY/sdf_small-fine.pt}
@@ -39,8 +39,9 @@ TEXT_RUN=$RUNS/transformer
 IMAGE_RUN=$RUNS/image
 for f in "$DATA/manifest.json" "$PRIOR" "$SDF"; do
   if [ ! -f "$f" ]; then
-    echo "[recipe] $f is missing: build the data and the shape prior first" \
-         "(bash scripts/recipe_geometry.sh), or set DATA / PRIOR / SDF" >&2
+    echo "[recipe] $f is missing: build the data (NAME=$NAME VERSION=synth-$NAME STAGE=data" \
+         "bash scripts/recipe_geometry.sh) and the shape prior (bash scripts/recipe_geometry.sh)" \
+         "first, or set DATA / PRIOR / SDF" >&2
     exit 2
   fi
 done
