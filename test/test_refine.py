@@ -730,7 +730,8 @@ def test_a_heap_of_narrow_drawers_becomes_a_row_and_other_fronts_are_left_alone(
     obj = _heap([(0.25, 0.15 * n - 0.3) for n in range(5)])
     for d in obj.parts[1:6]:                         # side by side, overlapping heights
         d.bbox_center[2] = 0.5
-    assert refine_layout(obj)["unheaped"] == 1
+    # stated as a row (unstated, the fill's 0.7 m tall fronts are restacked: the test above)
+    assert refine_layout(obj, stated={"drawer": {"layout": "row"}})["unheaped"] == 1
     zs = {round(float(d.bbox_center[2]), 6) for d in obj.parts[1:6]}
     ys = [d.bbox_center[1] for d in obj.parts[1:6]]
     assert len(zs) == 1 and ys == sorted(ys)
@@ -740,6 +741,29 @@ def test_a_heap_of_narrow_drawers_becomes_a_row_and_other_fronts_are_left_alone(
     assert refine_layout(tidy).get("unheaped", 0) == 0
     # drawers heaped under a door as wide as the body: the separation splits the groups
     assert refine_layout(_sloppy_cabinet()).get("unheaped", 0) == 0
+
+
+def test_tall_drawers_side_by_side_become_a_stack_unless_the_prompt_says_so():
+    """Two drawers decoded side by side as 0.45 m wide, 0.7 m tall fronts (the synth-6 data had
+    such) end up as a stack of wide drawers; stated side by side, they stay a row."""
+    def two_tall():
+        parts = [_part("body_0", "body", -1, (0.45, 1.0, 0.8), (0, 0, 0.4))]
+        for n, y in enumerate((-0.24, 0.24)):
+            parts.append(_part(f"drawer_{n}", "drawer", 0, (0.4, 0.45, 0.7), (0.03, y, 0.4),
+                               Joint(JointType.PRISMATIC, (0.22, y, 0.4), (1, 0, 0),
+                                     t_range=(0, 0.3))))
+        return ArticulatedObject(category="StorageFurniture", name="tall", parts=parts)
+    obj = two_tall()
+    assert refine_layout(obj)["restacked"] == 1
+    a, b = obj.parts[1:3]
+    assert not _boxes_overlap(a, b)
+    for d in (a, b):
+        assert d.bbox_size[1] > d.bbox_size[2]                      # wider than tall
+    assert a.bbox_center[1] == pytest.approx(b.bbox_center[1])       # one column
+    assert a.bbox_size == pytest.approx(b.bbox_size)
+    obj = two_tall()
+    assert refine_layout(obj, stated={"drawer": {"layout": "row"}}).get("restacked", 0) == 0
+    assert obj.parts[1].bbox_size[2] > obj.parts[1].bbox_size[1]
 
 
 def test_a_full_grid_of_uneven_drawers_gets_equal_cells():

@@ -105,6 +105,29 @@ def _unheap(obj: ArticulatedObject, members: list[int]) -> list[int]:
     return per
 
 
+TALL_DRAWER = 1.5   # a drawer front this many times as tall as wide is no drawer furniture has
+
+
+def _restack(obj: ArticulatedObject, drawers: list[int], facts: dict) -> int:
+    """Drawers decoded side by side as tall narrow fronts (the synth-6 data had them; synth-7
+    does not) are stacked over the rectangle they cover, one per row, unless the prompt
+    states their arrangement. -> rows restacked."""
+    from .arrange import H, V, _lay_out
+
+    if facts.keys() & ARRANGED:
+        return 0
+    parts = [obj.parts[i] for i in drawers]
+    height = float(np.median([p.bbox_size[V] for p in parts]))
+    done = 0
+    for row in _clusters(np.array([p.bbox_center[V] for p in parts]), 0.25 * height):
+        fronts = [parts[j] for j in row]
+        if len(row) >= 2 and all(p.bbox_size[V] > TALL_DRAWER * p.bbox_size[H]
+                                 for p in fronts):
+            _lay_out(obj, [drawers[j] for j in row], [1] * len(row))
+            done += 1
+    return done
+
+
 def _groups(obj: ArticulatedObject, members: list[int]) -> list[list[int]]:
     """The drawers and the doors among ``members``, by label, two or more each."""
     out = [[i for i in members if obj.parts[i].label == label] for label in HEAPS]
@@ -665,6 +688,10 @@ def siblings(obj: ArticulatedObject, cfg: LayoutConfig, report: dict,
             for same, per in heaps:       # a heap's grid grown by the fill: equal cells again
                 _relay(obj, members, same, per)
             drawers = [c for c in members if obj.parts[c].label == "drawer"]
+            if cfg.heaps and k == 0 and len(drawers) >= 2 and _restack(     # as the fill
+                    obj, drawers, (stated or {}).get("drawer") or {}):          # grew them
+                report["restacked"] = report.get("restacked", 0) + 1
+                _regular(obj, members, drawers)      # one column of equal drawers again
             if cfg.align and k == 0 and drawers:
                 report["handles"] = report.get("handles", 0) + _drawer_handles(obj, drawers)
             if cfg.attach:
