@@ -1,9 +1,9 @@
-"""Build a training subset of the synth-v4 data on a many-core accelerator machine, in time.
+"""Build a training subset of the procedural data on a many-core accelerator machine, in time.
 
 The full recipe's data (10,000 objects, 14 GB) cannot travel to a lent GPU machine, so the
 auto-encoder's data is rebuilt there: only objects of the full dataset's *train* split (the
 list comes from ``assign_splits`` of the 10,000 ids, seed 0), so the validation and test
-objects of ``data/prepared/v4`` stay unseen and the local evaluation is clean. Object i is a
+objects of the full dataset stay unseen and the local evaluation is clean. Object i is a
 pure function of (seed, i), so these are the same objects as in the full dataset.
 
     python scripts/device_data.py IDS_FILE OUT_DIR SECONDS WORKERS
@@ -18,6 +18,8 @@ import shutil
 import sys
 import time
 from pathlib import Path
+
+from model.data.synth import GENERATOR_VERSION
 
 
 def synth_until(ids: list[int], out: Path, seconds: float, workers: int) -> int:
@@ -44,14 +46,16 @@ def synth_until(ids: list[int], out: Path, seconds: float, workers: int) -> int:
 
 
 def main() -> None:
-    ids_file, out, seconds, workers = sys.argv[1], Path(sys.argv[2]), float(sys.argv[3]), int(sys.argv[4])
+    ids_file, out = sys.argv[1], Path(sys.argv[2])
+    seconds, workers = float(sys.argv[3]), int(sys.argv[4])
     ids = [int(x) for x in Path(ids_file).read_text().split()]
     synth_until(ids, out / "synth", seconds, workers)
     from model.data.preprocess import PrepareConfig, prepare_dataset
     t0 = time.time()
-    prepare_dataset(PrepareConfig(src=str(out / "synth"), out=str(out / "prepared"), workers=workers,
-                                  split=(0.95, 0.05, 0.0), data_version="synth-v4-train-subset",
-                                  seed=0), progress=False)
+    prepare_dataset(PrepareConfig(src=str(out / "synth"), out=str(out / "prepared"),
+                                  workers=workers, split=(0.95, 0.05, 0.0),
+                                  data_version=f"{GENERATOR_VERSION}-train-subset", seed=0),
+                    progress=False)
     print(f"prepare: {time.time() - t0:.0f} s", flush=True)
 
 

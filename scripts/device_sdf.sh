@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The auto-encoder stage of scripts/recipe_geometry.sh on a lent GPU machine (one command of at
 # most 10 minutes): unpack the pure-Python/extension dependencies the image lacks, rebuild a
-# train-split subset of synth-v4 on its CPU cores (scripts/device_data.py), train the
+# train-split subset of the procedural data (the current generator) on its CPU cores (scripts/device_data.py), train the
 # small-fine auto-encoder on CUDA and leave the resumable checkpoint in pieces under $OUT.
 #
 #   bash scripts/device_pack.sh    # here, once: .devrun/devsite.tar.xz and .devrun/train_ids.txt
@@ -16,8 +16,12 @@ W=$(nproc); DEV=${DEV:-cuda}
 left() { echo $(( T0 + DEADLINE_S - $(date +%s) )); }
 [ "${SITE:-1}" = 1 ] && { tar xJf .devrun/devsite.tar.xz -C /tmp || exit 3; }
 export PYTHONPATH=/tmp/devsite:$PWD PYTHONUNBUFFERED=1 HF_HUB_OFFLINE=1
-af() { python3 -c "import sys; from model.cli import main; sys.exit(main(sys.argv[1:]))" "$@"; }
-{ nvidia-smi -L; python3 -c "import torch, numpy; print('torch', torch.__version__, 'numpy', numpy.__version__, 'cuda', torch.cuda.is_available())"; echo "cores $W"; } | tee "$OUT/device.txt"
+PYMAIN='import sys; from model.cli import main; sys.exit(main(sys.argv[1:]))'   # artformer
+af() { python3 -c "$PYMAIN" "$@"; }
+{ nvidia-smi -L
+  python3 -c "import torch, numpy; print('torch', torch.__version__, 'numpy', numpy.__version__,
+                                          'cuda', torch.cuda.is_available())"
+  echo "cores $W"; } | tee "$OUT/device.txt"
 
 # smoke: the whole path on a few objects and the tiny preset, so a broken step costs seconds
 head -12 .devrun/train_ids.txt > /tmp/smoke_ids.txt
@@ -26,14 +30,16 @@ af train sdf --data /tmp/smoke/prepared --preset tiny --out /tmp/smoke/sdf --ste
   --no-progress --device "$DEV" --threads "$W" || exit 5
 echo "smoke ok at $(( $(date +%s) - T0 )) s"
 
-python3 scripts/device_data.py .devrun/train_ids.txt /tmp/dev "$SYNTH_S" "$W" | tee -a "$OUT/device.txt" || exit 6
+python3 scripts/device_data.py .devrun/train_ids.txt /tmp/dev "$SYNTH_S" "$W" \
+  | tee -a "$OUT/device.txt" || exit 6
 echo "data done at $(( $(date +%s) - T0 )) s" | tee -a "$OUT/device.txt"
 CHUNK=$(python3 -c "print(max(0.5, ($(left) - 60) / 60))")   # ~1 min for the box-frame cache
 CMD=(train sdf --data /tmp/dev/prepared --preset small-fine --out /tmp/dev/sdf --seed 0
      --threads "$W" --steps "$STEPS" --batch-size "$BATCH" --no-progress --device "$DEV"
      --chunk-minutes "$CHUNK" --resume)
 echo "artformer ${CMD[*]}" | tee -a "$OUT/device.txt"
-timeout --signal=TERM "$(left)" python3 -c "import sys; from model.cli import main; sys.exit(main(sys.argv[1:]))" "${CMD[@]}" 2>&1 | tail -40 | tee -a "$OUT/device.txt"
+timeout --signal=TERM "$(left)" python3 -c "$PYMAIN" "${CMD[@]}" 2>&1 | tail -40 \
+  | tee -a "$OUT/device.txt"
 echo "train stopped at $(( $(date +%s) - T0 )) s" | tee -a "$OUT/device.txt"
 cp /tmp/dev/sdf/log.jsonl "$OUT/sdf_log.jsonl" 2>/dev/null
 cp /tmp/dev/prepared/manifest.json "$OUT/manifest.json" 2>/dev/null
