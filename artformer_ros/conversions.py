@@ -108,8 +108,8 @@ def parse_text_request(payload: bytes | str, *, max_length: int, assigned_id: st
     ``payload`` is plain text (the id becomes ``assigned_id``) or a JSON object
     ``{"text": str, "id": str|int (optional), "seed": int (optional), "structure": object
     (optional, docs/ros.md), "size": object (optional, e.g. {"width": 0.6})}``; a payload
-    whose first non-blank character is ``{`` must be such an object. A structure's form is checked here; whether the model can produce it, by the
-    backend.
+    whose first non-blank character is ``{`` must be such an object. The form of a structure
+    or size is checked here; whether the model can produce it, by the backend.
     """
     if isinstance(payload, (bytes, bytearray)):
         # Bound the work before decoding: a UTF-8 character is at most 4 bytes; JSON adds keys.

@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # The auto-encoder stage of scripts/recipe_geometry.sh on a lent GPU machine (one command of at
 # most 10 minutes): unpack the pure-Python/extension dependencies the image lacks, rebuild a
-# train-split subset of the procedural data (the current generator) on its CPU cores (scripts/device_data.py), train the
-# small-fine auto-encoder on CUDA and leave the resumable checkpoint in pieces under $OUT.
+# train-split subset of the procedural data (the current generator) on its CPU cores
+# (scripts/device_data.py), train the small-fine auto-encoder on CUDA and leave the resumable
+# checkpoint in pieces under $OUT.
 #
 #   bash scripts/device_pack.sh    # here, once: .devrun/devsite.tar.xz and .devrun/train_ids.txt
 #   bash scripts/device_sdf.sh     # there (device run, carry .devrun), with $OUT set
