@@ -761,9 +761,10 @@ def test_tall_drawers_side_by_side_become_a_stack_unless_the_prompt_says_so():
         assert d.bbox_size[1] > d.bbox_size[2]                      # wider than tall
     assert a.bbox_center[1] == pytest.approx(b.bbox_center[1])       # one column
     assert a.bbox_size == pytest.approx(b.bbox_size)
-    obj = two_tall()
-    assert refine_layout(obj, stated={"drawer": {"layout": "row"}}).get("restacked", 0) == 0
-    assert obj.parts[1].bbox_size[2] > obj.parts[1].bbox_size[1]
+    for stated in ({"layout": "row"}, {"hpos": ["left", "right"]}):
+        obj = two_tall()
+        assert refine_layout(obj, stated={"drawer": stated}).get("restacked", 0) == 0
+        assert obj.parts[1].bbox_size[2] > obj.parts[1].bbox_size[1]
 
 
 def test_a_full_grid_of_uneven_drawers_gets_equal_cells():

@@ -111,10 +111,10 @@ TALL_DRAWER = 1.5   # a drawer front this many times as tall as wide is no drawe
 def _restack(obj: ArticulatedObject, drawers: list[int], facts: dict) -> int:
     """Drawers decoded side by side as tall narrow fronts (the synth-6 data had them; synth-7
     does not) are stacked over the rectangle they cover, one per row, unless the prompt
-    states their arrangement. -> rows restacked."""
+    states their arrangement (or drawers on both sides). -> rows restacked."""
     from .arrange import H, V, _lay_out
 
-    if facts.keys() & ARRANGED:
+    if facts.keys() & ARRANGED or len(facts.get("hpos") or []) > 1:
         return 0
     parts = [obj.parts[i] for i in drawers]
     height = float(np.median([p.bbox_size[V] for p in parts]))
