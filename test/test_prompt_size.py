@@ -6,7 +6,7 @@ import pytest
 from model.core import ArticulatedObject, Joint, JointType, Part
 from model.data.expected_structure import ExpectedStructure
 from model.data.prompt_parse import parse_prompt
-from model.data.prompt_size import read_size, with_usual_size
+from model.data.prompt_size import read_size, with_usual_layout, with_usual_size
 from model.metrics.alignment import GeneratedStructure, check_alignment
 from model.refine.size import scale_to_size, size_factors
 
@@ -38,6 +38,18 @@ def test_a_microwave_has_a_microwaves_size_unless_the_prompt_says_otherwise():
     assert with_usual_size("a toaster oven with two knobs", "Oven", {})["height"] == 0.27
     assert with_usual_size("a microwave-sized safe", "Safe", {}) == {}
     assert with_usual_size("an oven with two racks", "Oven", {}) == {}
+
+
+def test_a_microwave_gets_its_control_column_beside_the_door_unless_sides_are_stated():
+    said = parse_prompt("a microwave with two knobs").spatial
+    usual = with_usual_layout("a microwave with two knobs", "Oven", said)
+    assert usual["door"] == {"hinge": ["left"], "opens": ["sideways"], "hpos": ["left"]}
+    assert usual["knob"] == {"hpos": ["right"], "layout": "column"}
+    assert said == parse_prompt("a microwave with two knobs").spatial    # not changed in place
+    for text in ("a microwave with its door hinged on the right",
+                 "a microwave with a row of knobs", "an oven with two knobs"):
+        spatial = parse_prompt(text).spatial
+        assert with_usual_layout(text, "Oven", spatial) == spatial
 
 
 def test_size_round_trips_through_the_annotation_line():

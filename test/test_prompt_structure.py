@@ -110,9 +110,14 @@ def test_shipped_model_builds_the_size_the_prompt_states(shipped):
     for text, seed in (("a kitchen cabinet 60 cm wide with two drawers", 0), ("a microwave", 1)):
         [res] = shipped.generate(text, seed=seed)
         assert res.obj.metadata["refine"]["size"]["factors"]
-        if text == "a microwave":     # its usual size, not a stated one
-            np.testing.assert_allclose(res.obj.parts[res.obj.root].bbox_size, [0.38, 0.5, 0.3],
+        if text == "a microwave":     # its usual size and layout, not stated ones
+            obj = res.obj
+            np.testing.assert_allclose(obj.parts[obj.root].bbox_size, [0.38, 0.5, 0.3],
                                        rtol=0.05)
+            door = next(p for p in obj.parts if p.label == "door")
+            for p in obj.parts:
+                if p.label in ("knob", "button", "dial"):      # the control column
+                    assert p.bbox_center[1] > door.bbox_center[1] + door.bbox_size[1] / 2
         else:
             al = alignment_of(text, res.obj)
             assert al.spatial.get("size") is True, al.failures

@@ -82,6 +82,36 @@ def parse_size(spec) -> dict[str, float]:
     return out
 
 
+# usual arrangements of everyday names whose category's data has another one (a microwave's
+# door hangs on the left with its controls in a column to its right; the data's ovens have a
+# control panel above the door): (names, the door's hinge they hold for, facts per label)
+NAMED_LAYOUTS: dict[str, list[tuple[tuple[str, ...], str, dict]]] = {
+    "Oven": [(("microwave",), "left",
+              {"door": {"hpos": ["left"]}, **{c: {"hpos": ["right"], "layout": "column"}
+                                              for c in ("knob", "button", "dial")}})],
+}
+
+
+def with_usual_layout(text: str, category: str | None, spatial: dict | None) -> dict | None:
+    """``spatial`` (label -> facts) with the usual arrangement of an everyday name in ``text``
+    (``NAMED_LAYOUTS``) where the door hangs as usual and nothing about the sides is stated:
+    what generation holds ("a microwave" gets its control column beside the door). Not a
+    stated fact: the alignment metric checks the prompt's facts only."""
+    low = text.lower()
+    for names, hinge, usual in NAMED_LAYOUTS.get(category or "", []):
+        if not any(re.search(rf"\b{n}s?\b", low) for n in names):
+            continue
+        facts = spatial or {}
+        if (facts.get("door") or {}).get("hinge") != [hinge] or any(
+                f.get("hpos") or f.get("layout") for f in facts.values()):
+            return spatial
+        out = {lab: dict(f) for lab, f in facts.items()}
+        for lab, f in usual.items():
+            out.setdefault(lab, {}).update(f)
+        return out
+    return spatial
+
+
 def with_usual_size(text: str, category: str | None, stated: dict | None) -> dict:
     """``stated`` with the usual size of an everyday name in ``text`` (``NAMED_SIZES``) for
     the dimensions it leaves open: what generation gives the body ("a microwave" is

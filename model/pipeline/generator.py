@@ -27,7 +27,7 @@ from model.core.runtime import keep_heap_mapped, torch_threads
 from model.pipeline.api import (ExportResult, GeneratedObject, GenerationConfig,
                                 GenerationError)
 from model.pipeline.part_pool import PartPool, default_workers
-from model.data.prompt_size import with_usual_size
+from model.data.prompt_size import with_usual_layout, with_usual_size
 from model.pipeline.prompt_structure import spatial_for
 # checkpoint discovery and request checks, re-exported from their modules
 from model.pipeline.checkpoints import (STAGES, WEIGHTS_DIR, check_codebooks,  # noqa: F401
@@ -226,8 +226,8 @@ class Generator:
         held = None if spec is None else parse_structure(spec).to_dict()
         for tree in trees:
             tree.structure = held
-            tree.spatial = spatial_for(stated.spatial, tree.category) if stated is not None \
-                else None
+            tree.spatial = with_usual_layout(prompt, tree.category, spatial_for(
+                stated.spatial, tree.category)) if stated is not None else None
             said = with_usual_size(prompt, tree.category, stated.size) if stated else {}
             tree.size = {**said, **(given or {})} or None
         return trees, prompt, modality, timings
