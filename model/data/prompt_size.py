@@ -7,7 +7,8 @@ side. A value outside 1 cm - 5 m is not a size a generated object can take and i
 
 ``with_usual_size`` adds the usual size of everyday objects the data lacks at their size for
 the dimensions the text leaves open (``NAMED_SIZES``: a microwave is read as an oven, whose
-data is 45-95 cm tall, so without it "a microwave" came out oven-sized).
+data is 45-95 cm tall, so without it "a microwave" came out oven-sized); ``with_usual_layout``
+their usual arrangement (``NAMED_LAYOUTS``: a microwave's controls beside its door).
 """
 from __future__ import annotations
 
