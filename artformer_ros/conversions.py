@@ -144,22 +144,22 @@ def parse_text_request(payload: bytes | str, *, max_length: int, assigned_id: st
     if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int)
                              or not 0 <= seed <= SEED_MAX):
         raise RequestError(f"'seed' must be an integer in [0, {SEED_MAX}]", rid)
-    structure = obj.get("structure")
-    if structure is not None:
-        from model.pipeline.api import GenerationError, parse_structure
-        try:
-            structure = parse_structure(structure).to_dict()
-        except GenerationError as err:
-            raise RequestError(str(err), rid) from None
-    size = obj.get("size")
-    if size is not None:
-        from model.data.prompt_size import parse_size
-        try:
-            size = parse_size(size)
-        except ValueError as err:
-            raise RequestError(str(err), rid) from None
+    from model.pipeline.api import parse_size, parse_structure
+    structure = _checked(obj, "structure", lambda v: parse_structure(v).to_dict(), rid)
+    size = _checked(obj, "size", parse_size, rid)
     return TextRequest(rid, _check_text(obj["text"], max_length, rid), seed, "id" in obj,
                        structure, size)
+
+
+def _checked(obj: dict, key: str, parse, rid: str):
+    """``parse(obj[key])``, None when absent; its GenerationError as this request's error."""
+    from model.pipeline.api import GenerationError
+    if obj.get(key) is None:
+        return None
+    try:
+        return parse(obj[key])
+    except GenerationError as err:
+        raise RequestError(str(err), rid) from None
 
 
 def slug(text: str, max_length: int = 40) -> str:

@@ -384,20 +384,26 @@ class StructureBackend(ScriptedBackend):
         return [GeneratedObject(obj=None, prompt=text, seed=seed, timings={})]
 
 
-def test_json_structure_requests_reach_the_backend_and_bad_ones_get_error_results(tmp_path):
+def _refused(key, cases):
+    """Each (bad value of ``key``, words) is an error of the request that sent it."""
     from artformer_ros.conversions import RequestError, parse_text_request
+    for bad, words in cases:
+        with pytest.raises(RequestError, match=words) as err:
+            parse_text_request(json.dumps({"id": "r2", "text": "x", key: bad}),
+                               max_length=100, assigned_id="t")
+        assert err.value.request_id == "r2"
+
+
+def test_json_structure_requests_reach_the_backend_and_bad_ones_get_error_results(tmp_path):
+    from artformer_ros.conversions import parse_text_request
     req = parse_text_request(json.dumps({"id": "s1", "text": "a cabinet",
                                          "structure": {"drawer": 3, "door": {"hinge": "left"}}}),
                              max_length=100, assigned_id="text-1")
     assert req.structure == {"drawer": {"count": 3},
                              "door": {"count": 1, "joint": "revolute", "hinge": ["left"]}}
     assert parse_text_request("plain text", max_length=100, assigned_id="t").structure is None
-    for bad, words in ((["drawer"], "JSON object"), ('{"drawer": 3', "not valid JSON"),
-                       ({"drawer": -2}, ">= 0"), ({"door": {"hinge": "north"}}, "hinge side")):
-        with pytest.raises(RequestError, match=words) as err:
-            parse_text_request(json.dumps({"id": "s2", "text": "x", "structure": bad}),
-                               max_length=100, assigned_id="t")
-        assert err.value.request_id == "s2"
+    _refused("structure", ((["drawer"], "JSON object"), ('{"drawer": 3', "not valid JSON"),
+                           ({"drawer": -2}, ">= 0"), ({"door": {"hinge": "north"}}, "hinge side")))
 
     h = Harness(tmp_path, backend=StructureBackend())
     h.svc.start()
@@ -422,17 +428,13 @@ class SizeBackend(StructureBackend):
 
 def test_json_size_requests_reach_the_backend_and_bad_ones_get_error_results(tmp_path):
     from artformer_ros.backends import ExampleBackend
-    from artformer_ros.conversions import RequestError, parse_text_request
+    from artformer_ros.conversions import parse_text_request
     req = parse_text_request(json.dumps({"id": "z1", "text": "a cabinet",
                                          "size": {"width": 0.6, "height": 1}}),
                              max_length=100, assigned_id="text-1")
     assert req.size == {"width": 0.6, "height": 1.0}
-    for bad, words in (([0.6], "an object"), ({"wide": 0.6}, "unknown dimension"),
-                       ({"width": 60}, "metres"), ({"width": True}, "metres")):
-        with pytest.raises(RequestError, match=words) as err:
-            parse_text_request(json.dumps({"id": "z2", "text": "x", "size": bad}),
-                               max_length=100, assigned_id="t")
-        assert err.value.request_id == "z2"
+    _refused("size", (([0.6], "an object"), ({"wide": 0.6}, "unknown dimension"),
+                      ({"width": 60}, "metres"), ({"width": True}, "metres")))
     h = Harness(tmp_path, backend=SizeBackend())
     h.svc.start()
     assert h.svc.wait_ready(5)

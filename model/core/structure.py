@@ -151,3 +151,33 @@ def _part_request(label: str, spec) -> PartRequest:
     if count == 0 and joint is not None:
         raise GenerationError(f"{where}: count 0 with a joint type is contradictory")
     return PartRequest(count=count, joint=joint, hinge=hinge)
+
+
+SIZE_DIMENSIONS = ("width", "height", "depth", "length")   # of the body, m
+SIZE_LIMITS = (0.01, 5.0)                                  # m: sizes an object can take
+
+
+def parse_size(value) -> dict[str, float]:
+    """A size given outright (API, ``--size``, the node's JSON request): ``{"width": 0.6,
+    "height": 0.8}`` in metres, or its JSON text -> that dict; GenerationError says what is
+    wrong with it (model.refine.size gives it to the body)."""
+    import json
+    if isinstance(value, str):
+        try:
+            value = json.loads(value)
+        except json.JSONDecodeError as e:
+            raise GenerationError(f"size is not valid JSON: {e.msg}") from None
+    if not isinstance(value, dict) or not value:
+        raise GenerationError('a size is an object such as {"width": 0.6, "height": 0.8} '
+                              '(metres)')
+    out = {}
+    lo, hi = SIZE_LIMITS
+    for dim, v in value.items():
+        if dim not in SIZE_DIMENSIONS:
+            raise GenerationError(f"size: unknown dimension {dim!r} "
+                                  f"(one of {list(SIZE_DIMENSIONS)})")
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not lo <= v <= hi:
+            raise GenerationError(f"size: {dim} must be a number of metres in [{lo}, {hi}], "
+                                  f"got {v!r}")
+        out[dim] = float(v)
+    return out

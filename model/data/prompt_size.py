@@ -14,7 +14,8 @@ from __future__ import annotations
 
 import re
 
-DIMENSIONS = ("width", "height", "depth", "length")
+from model.core.structure import SIZE_LIMITS as LIMITS
+
 AXIS = {"depth": 0, "width": 1, "height": 2}   # the object frame: x front-back, y left-right
 
 _UNITS = {"mm": 0.001, "millimeter": 0.001, "millimetre": 0.001,
@@ -33,13 +34,17 @@ _AFTER = re.compile(rf"\b{_NUM}\s*-?\s*{_UNIT}(?![a-z])\s*-?\s*"
                     r"(wide|tall|high|deep|long|across|in (?:width|height|depth|length))\b")
 _BEFORE = re.compile(r"\b(width|height|depth|length)\s*(?:of|is|:|=|about|around|approx\.?)?\s*"
                      rf"(?:about |around |roughly )?{_NUM}\s*{_UNIT}(?![a-z])")
-LIMITS = (0.01, 5.0)
 
 # usual sizes (m) of everyday names whose category's data is another size
 NAMED_SIZES: dict[str, list[tuple[tuple[str, ...], dict[str, float]]]] = {
     "Oven": [(("microwave",), {"width": 0.50, "height": 0.30, "depth": 0.38}),
              (("toaster oven", "countertop oven"), {"width": 0.45, "height": 0.27, "depth": 0.36})],
 }
+
+
+def _named(text: str, names: tuple[str, ...]) -> bool:
+    low = text.lower()
+    return any(re.search(rf"\b{n}s?\b", low) for n in names)
 
 
 def _unit(word: str) -> float:
@@ -60,29 +65,6 @@ def read_size(text: str) -> dict[str, float]:
     return out
 
 
-def parse_size(spec) -> dict[str, float]:
-    """A size given outright (API, ``--size``, the node's JSON request): ``{"width": 0.6,
-    "height": 0.8}`` in metres, or its JSON text. ValueError saying what is wrong."""
-    import json
-    if isinstance(spec, str):
-        try:
-            spec = json.loads(spec)
-        except json.JSONDecodeError as e:
-            raise ValueError(f"size is not valid JSON: {e.msg}") from None
-    if not isinstance(spec, dict) or not spec:
-        raise ValueError('a size is an object such as {"width": 0.6, "height": 0.8} (metres)')
-    out = {}
-    for dim, value in spec.items():
-        if dim not in DIMENSIONS:
-            raise ValueError(f"size: unknown dimension {dim!r} (one of {list(DIMENSIONS)})")
-        if isinstance(value, bool) or not isinstance(value, (int, float)) \
-                or not LIMITS[0] <= value <= LIMITS[1]:
-            raise ValueError(f"size: {dim} must be a number of metres in "
-                             f"[{LIMITS[0]}, {LIMITS[1]}], got {value!r}")
-        out[dim] = float(value)
-    return out
-
-
 # usual arrangements of everyday names whose category's data has another one (a microwave's
 # door hangs on the left with its controls in a column to its right; the data's ovens have a
 # control panel above the door): (names, the door's hinge they hold for, facts per label)
@@ -98,9 +80,8 @@ def with_usual_layout(text: str, category: str | None, spatial: dict | None) -> 
     (``NAMED_LAYOUTS``) where the door hangs as usual and nothing about the sides is stated:
     what generation holds ("a microwave" gets its control column beside the door). Not a
     stated fact: the alignment metric checks the prompt's facts only."""
-    low = text.lower()
     for names, hinge, usual in NAMED_LAYOUTS.get(category or "", []):
-        if not any(re.search(rf"\b{n}s?\b", low) for n in names):
+        if not _named(text, names):
             continue
         facts = spatial or {}
         if (facts.get("door") or {}).get("hinge") != [hinge] or any(
@@ -118,9 +99,8 @@ def with_usual_size(text: str, category: str | None, stated: dict | None) -> dic
     the dimensions it leaves open: what generation gives the body ("a microwave" is
     microwave-sized). Not a stated fact: the alignment metric checks ``stated`` only."""
     out = dict(stated or {})
-    low = text.lower()
     for names, usual in NAMED_SIZES.get(category or "", []):
-        if any(re.search(rf"\b{n}s?\b", low) for n in names) and "length" not in out:
+        if _named(text, names) and "length" not in out:
             for dim, value in usual.items():
                 out.setdefault(dim, value)
             break

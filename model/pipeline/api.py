@@ -11,7 +11,8 @@ from typing import Optional
 
 from model.core import ArticulatedObject
 from model.core.structure import (AUTO, HINGE_SIDES, GenerationError,  # noqa: F401  (this API)
-                                   PartRequest, StructureSpec, hinge_side, parse_structure)
+                                   PartRequest, StructureSpec, hinge_side, parse_size,
+                                   parse_structure)
 from model.export.urdf import ExportResult  # noqa: F401  (part of this API)
 
 

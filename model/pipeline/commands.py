@@ -130,11 +130,8 @@ def _generate(argv: list[str]) -> int:
             structure = parse_structure(a.structure)    # bad JSON fails before the model loads
         size = None
         if a.size is not None:
-            from model.data.prompt_size import parse_size
-            try:
-                size = parse_size(a.size)
-            except ValueError as e:
-                raise GenerationError(str(e)) from None
+            from model.pipeline.api import parse_size
+            size = parse_size(a.size)                   # as the structure, before the load
         gen = Generator.load(_config(a))
         results = gen.generate(a.text, image=a.image, seed=a.seed, samples=a.samples,
                                structure=structure, size=size)

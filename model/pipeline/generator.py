@@ -155,17 +155,13 @@ class Generator:
         that :meth:`generate` meshes."""
         import torch
 
-        from model.data.prompt_size import parse_size
-        from model.pipeline.api import parse_structure
+        from model.pipeline.api import parse_size, parse_structure
 
         if (text is None) == (image is None):
             raise GenerationError("give a text or an image (exactly one)")
         if not 1 <= int(samples) <= 16:
             raise GenerationError(f"samples must be between 1 and 16, got {samples}")
-        try:
-            given = None if size is None else parse_size(size)
-        except ValueError as e:
-            raise GenerationError(str(e)) from None
+        given = None if size is None else parse_size(size)
         spec = splan = None
         if structure is not None:
             if keep is not None:
