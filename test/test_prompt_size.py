@@ -45,6 +45,7 @@ def test_a_microwave_gets_its_control_column_beside_the_door_unless_sides_are_st
     usual = with_usual_layout("a microwave with two knobs", "Oven", said)
     assert usual["door"] == {"hinge": ["left"], "opens": ["sideways"], "hpos": ["left"]}
     assert usual["knob"] == {"hpos": ["right"], "layout": "column"}
+    assert usual["button"] == {"hpos": ["right"], "layout": "column", "below": ["knob"]}
     assert said == parse_prompt("a microwave with two knobs").spatial    # not changed in place
     for text in ("a microwave with its door hinged on the right",
                  "a microwave with a row of knobs", "an oven with two knobs"):

@@ -60,6 +60,9 @@ def test_a_microwave_is_an_oven_whose_door_hangs_on_its_left_side():
     assert e.spatial["door"] == {"hinge": ["left"], "opens": ["sideways"]}
     s = structure_for(e, "Oven", _all_labels("Oven"))
     assert s["door"]["hinge"] == ["left"]
+    # "a keypad" is at least two buttons, also when the network's own reading is another
+    # category (the shipped model reads this prompt as a washer) and gives no open counts
+    assert s["button"] == {"count": 2} and s["knob"] == "auto"
     # what the prompt says about the door wins; a microwave-sized safe is a safe
     assert parse_prompt("a microwave with a drop-down door").spatial["door"] == {"opens": ["down"]}
     assert parse_prompt("a microwave with its door hinged on the right").spatial["door"] == \

@@ -113,3 +113,28 @@ def test_a_chest_of_five_drawers_is_a_stack_of_one_drawer_meshed_once(gen):
                            atol=1e-3)
         assert len(p.mesh.faces) == len(first.mesh.faces)
     assert calls and calls[0] < len(res.obj.parts) - 3
+
+
+def test_a_microwave_keypad_is_a_column_of_controls_beside_its_door(gen):
+    """"A microwave with a keypad": at least two buttons (the stated lower bound holds though
+    the network alone reads a washer), and every knob and button in one column right of the
+    door, knobs above buttons, none overlapping another, none squeezed under 5 mm."""
+    for seed in range(3):
+        trees, *_ = gen.decode_trees("a microwave with a keypad", seed=seed)
+        obj = gen.layout(trees[0])
+        parts = obj.parts
+        ctrl = [p for p in parts if p.label in ("knob", "button")]
+        door = next(p for p in parts if p.label == "door")
+        assert sum(p.label == "button" for p in ctrl) >= 2, seed
+        lo = {id(p): p.bbox_center - p.bbox_size / 2 for p in ctrl + [door]}
+        hi = {id(p): p.bbox_center + p.bbox_size / 2 for p in ctrl + [door]}
+        for a in ctrl:
+            assert lo[id(a)][1] >= hi[id(door)][1], seed          # right of the door
+            assert np.all(a.bbox_size[1:] >= 0.005), (seed, a.label, a.bbox_size)
+            for b in ctrl:
+                if a is not b:
+                    assert not np.all((lo[id(a)] < hi[id(b)] - 1e-6)
+                                      & (lo[id(b)] < hi[id(a)] - 1e-6)), seed
+        knobs = [p.bbox_center[2] for p in ctrl if p.label == "knob"]
+        buttons = [p.bbox_center[2] for p in ctrl if p.label == "button"]
+        assert not knobs or min(knobs) > max(buttons), seed

@@ -71,7 +71,8 @@ def read_size(text: str) -> dict[str, float]:
 NAMED_LAYOUTS: dict[str, list[tuple[tuple[str, ...], str, dict]]] = {
     "Oven": [(("microwave",), "left",
               {"door": {"hpos": ["left"]}, **{c: {"hpos": ["right"], "layout": "column"}
-                                              for c in ("knob", "button", "dial")}})],
+                                              for c in ("knob", "button", "dial")},
+               "button": {"hpos": ["right"], "layout": "column", "below": ["knob"]}})],
 }
 
 

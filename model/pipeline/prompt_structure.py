@@ -46,7 +46,8 @@ def structure_for(expected, category: str, labels: Iterable[str],
     host (a safe's buttons on its door) gets that host too, at least one of it. Every other
     part label of the category is left to the network: its count in ``open_counts`` (what
     the network's own decoding of the prompt made, within the label's training maximum; at
-    least a stated lower bound such as "drawers"), or ``"auto"`` without it. Handles stay
+    least a stated lower bound such as "drawers"), or ``"auto"`` without it (a stated lower
+    bound is then the count: "a keypad" is at least two buttons). Handles stay
     ``"auto"``: they follow their doors and drawers. ``clamp`` (> 0): stated counts above a
     label's training maximum, or above ``clamp``, are held at the smaller of the two.
     """
@@ -63,10 +64,10 @@ def structure_for(expected, category: str, labels: Iterable[str],
 
     out: dict = {"category": category}
     out.update({lab: "auto" for lab in sorted(have - {"body"})})
-    if open_counts is not None:
-        lows = {own(lab): int(n) for lab, n in expected.min_counts.items()}
-        for lab in have - {"body", "handle"}:
-            n = max(int(open_counts.get(lab, 0)), lows.get(lab, 0))
+    lows = {own(lab): int(n) for lab, n in expected.min_counts.items()}
+    for lab in have - {"body", "handle"}:
+        if open_counts is not None or lab in lows:
+            n = max(int((open_counts or {}).get(lab, 0)), lows.get(lab, 0))
             out[lab] = {"count": min(n, int(grammar[lab][2]))}
     counts: dict[str, int] = {}
     for lab, n in expected.counts.items():
