@@ -53,6 +53,11 @@ CASES = [
     ("A stove with four knobs. Two big ones and two small ones.", "Oven", {"knob": 4}, {}, {}),
     ("a cabinet with one door and one drawer, plus one door", "StorageFurniture",
      {"door": 2, "drawer": 1}, {}, {}),
+    # bare singulars on distinct sides are as many parts; one side said twice is one
+    ("Cabinet. Door on the left, door on the right, one drawer in the middle between them.",
+     "StorageFurniture", {"door": 2, "drawer": 1}, {}, {}),
+    ("a cabinet. The door is on the left. The door is on its left.", "StorageFurniture",
+     {"door": 1}, {}, {}),
 ]
 
 

@@ -15,6 +15,8 @@ What it understands
 * lists with sides: "a left door and a right door" → 2 doors; an appositive after a counted
   plural ("two doors, a left door and a right door") is not counted twice, nor is a count
   split into groups ("five drawers: two small ones on top and three large drawers below").
+  Bare singulars on distinct sides are as many parts ("door on the left, door on the
+  right" → 2 doors).
 * "ones" is the part named last ("one wide drawer and three small ones" → 4 drawers).
 * motion: adjectives ("sliding drawers", "hinged lid") and clauses ("the drawers slide out",
   "a door hinged on the left", "the cap screws off") attach to the nearest part mention;
@@ -173,6 +175,7 @@ def parse_prompt(text: str) -> ExpectedStructure:
         if parts_here:
             last_part = parts_here[-1]
     out.counts, out.min_counts = _counts(mentions)
+    _sided_singles(out, mentions)
     out.joint_types = _joint_types(motion_links, out.counts)
     _tidy(out, text)
     out.size = read_size(text)
@@ -275,6 +278,17 @@ def _counts(mentions: list[_Mention]) -> tuple[dict[str, int], dict[str, int]]:
             exact[lab] = 1
             del lower[lab]
     return exact, lower
+
+
+def _sided_singles(out: ExpectedStructure, mentions: list[_Mention]) -> None:
+    """"Door on the left, door on the right": a part counted once only because every mention
+    of it is a bare or definite singular is as many parts as the distinct sides stated for
+    it (``hpos``), when there are two or more and as many mentions."""
+    for lab, n in list(out.counts.items()):
+        ms = [m for m in mentions if m.label == lab]
+        sides = set((out.spatial.get(lab) or {}).get("hpos") or [])
+        if n == 1 and len(sides) >= 2 and len(ms) >= len(sides) and all(m.single for m in ms):
+            out.counts[lab] = len(sides)
 
 
 def _mark_breakdowns(mentions: list[_Mention]) -> None:
