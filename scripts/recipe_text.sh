@@ -90,6 +90,8 @@ stage_text_eval() {   # validation only: the test split is scored once, for the 
     done
   done
   record "$RUNS" "$(date -u +%FT%TZ) text-eval (val alignment and layout, audit, free-form and dev prompts; candidate and shipped): $(( $(date -u +%s) - t0 )) s wall"
+  # the ship rule on those files (scripts/compare_candidate.py): a table and a verdict
+  python scripts/compare_candidate.py "$RUNS" --markdown "$RUNS/compare_val.md"
 }
 
 stage_render() {
