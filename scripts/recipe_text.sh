@@ -8,7 +8,7 @@
 #   STAGE=text bash scripts/recipe_text.sh      # one stage: text | text-eval | render | image | image-eval
 #
 # Settings (environment variables, defaults below): DATA, PRIOR, SDF, PRESET, TEXT_STEPS,
-# IMAGE_STEPS, FRAME, MODES, SEED, THREADS, CHUNK_MIN, RUNS. FRAME and MODES are the token
+# IMAGE_STEPS, TRUNK, FRAME, MODES, SEED, THREADS, CHUNK_MIN, RUNS. FRAME and MODES are the token
 # frame and articulation modes (docs/results/layout_training.md). Each run folder gets
 # RECIPE.md with the command lines, seed, data version, device and wall time of every chunk.
 # Nothing is copied into model/weights: the fp16 files land in RUNS, to be shipped only when
@@ -25,7 +25,8 @@ PRESET=${PRESET:-small}
 PRIOR=${PRIOR:-$GEOMETRY/prior_small-fine.pt}
 SDF=${SDF:-$GEOMETRY/sdf_small-fine.pt}
 TEXT_STEPS=${TEXT_STEPS:-16000}  # batch 64: 128 passes over 8,000 training trees
-IMAGE_STEPS=${IMAGE_STEPS:-20000}
+IMAGE_STEPS=${IMAGE_STEPS:-12000}
+TRUNK=${TRUNK:-model/weights/image_small.pt}   # fine-tuned encoder blocks 4-14 (its trunk)
 FRAME=${FRAME:-parent}
 MODES=${MODES:-4}
 SEED=${SEED:-0}
@@ -104,7 +105,7 @@ stage_render() {
 
 stage_image() {
   local img=(--renders "$RENDERS" --init "$RUNS/transformer_$PRESET.pt" --prior "$PRIOR"
-             --sdf "$SDF" --lr 2e-4 --warmup 100 --own-inputs 0.5 --minutes 0)
+             --sdf "$SDF" --trunk "$TRUNK" --lr 2e-4 --warmup 100 --own-inputs 0.5 --minutes 0)
   train_chunks image "$IMAGE_RUN" "$IMAGE_STEPS" "${img[@]}"
   artformer train image --data "$DATA" --preset "$PRESET" --out "$IMAGE_RUN" --seed "$SEED" \
     --threads "$THREADS" --steps "$IMAGE_STEPS" --no-progress --resume "${img[@]}" \

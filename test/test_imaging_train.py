@@ -1,4 +1,6 @@
 """Image-conditioned transformer: a tiny training run lowers the loss; checkpoint round trip."""
+from pathlib import Path
+
 import numpy as np
 import pytest
 import torch
@@ -6,6 +8,7 @@ import torch
 from helpers import write_prepared
 
 torch.set_num_threads(1)
+ROOT = Path(__file__).resolve().parents[1]
 
 
 @pytest.fixture(scope="module")
@@ -351,8 +354,12 @@ def test_fine_tuned_trunk_feeds_the_image_model(tiny_set, tmp_path):
     torch.save(raw, tmp_path / "damaged.pt")
     with pytest.raises(TrunkError, match="hash"):
         load_trunk(tmp_path / "damaged.pt")
-    with pytest.raises(TrunkError, match="'image_trunk' one is needed"):
-        load_trunk(image_ckpt)
+    with pytest.raises(TrunkError, match="without a fine-tuned trunk"):
+        load_trunk(image_ckpt)                     # an image checkpoint on ImageNet's trunk
+    # an image checkpoint's own trunk: the same blocks and tag as the trunk file it came from
+    from_image = load_trunk(path)
+    assert from_image["tag"] == tr["tag"] and from_image["freeze"] == tr["freeze"]
+    assert torch.equal(from_image["state_dict"][k], tr["state_dict"][k])
     (tmp_path / "garbage.pt").write_bytes(b"not a torch file")
     with pytest.raises(TrunkError, match="corrupt or not an artformer checkpoint"):
         load_trunk(tmp_path / "garbage.pt")
@@ -755,3 +762,13 @@ def test_torchrun_two_processes_train_the_image_model(tiny_set, tmp_path):
     im = load_image_model(tmp_path / "run" / "image.pt", prior="stand-in")
     assert im.meta["step"] == 4
 
+
+
+def test_the_shipped_image_models_trunk_serves_as_a_trunk_file():
+    """`--trunk model/weights/image_small.pt`: the shipped fine-tuned blocks 4-14 for a new
+    image model (the text recipe's image stage); a text checkpoint is refused."""
+    from model.imaging.trunk import TrunkError, first_block, load_trunk
+    tr = load_trunk(ROOT / "model" / "weights" / "image_small.pt")
+    assert tr["freeze"] == 4 and first_block(tr["state_dict"]) == 4 and len(tr["tag"]) == 12
+    with pytest.raises(TrunkError, match="without a fine-tuned trunk"):
+        load_trunk(ROOT / "model" / "weights" / "transformer_small.pt")

@@ -69,7 +69,8 @@ def _features(argv: list[str]) -> int:
                                         "dataset, as `artformer train image` does on first use "
                                         "(one process per render set runs the sets in parallel).")
     ap.add_argument("--trunk", default=None,
-                    help="a fine-tuned trunk (`artformer train image-trunk` OUT/trunk.pt); default ImageNet's")
+                    help="a fine-tuned trunk (`artformer train image-trunk` OUT/trunk.pt, or an "
+                         "image checkpoint's); default ImageNet's")
     ap.add_argument("--image-size", type=int, default=224, help="encoder input size (a multiple of 224)")
     ap.add_argument("--splits", default="train,val,test", help="splits whose objects are cached")
     ap.add_argument("--multiscale", action="store_true",
@@ -157,7 +158,9 @@ def image_parser():
     ap.add_argument("--tail-lr-mult", type=float, default=0.1)
     ap.add_argument("--trunk", metavar="TRUNK_PT",
                     help="read the features of this fine-tuned trunk (`artformer train "
-                         "image-trunk`); default: the --init image checkpoint's, else ImageNet's")
+                         "image-trunk` OUT/trunk.pt, or an image checkpoint's such as "
+                         "model/weights/image_small.pt); default: the --init image "
+                         "checkpoint's, else ImageNet's")
     ap.add_argument("--multiscale", action="store_true",
                     help="tokens also carry the 14x14 block-10 features (1728-d); from a "
                          "1280-d image checkpoint the projection is widened with zeros")

@@ -90,11 +90,22 @@ def trunk_tag(state: dict) -> str:
 
 
 def load_trunk(path) -> dict:
-    """Read and check an ``artformer train image-trunk`` file."""
+    """Read and check an ``artformer train image-trunk`` file, or take the fine-tuned trunk
+    of an image checkpoint (the shipped ``image_small.pt``), tagged by its weights as a
+    trunk file is (both store fp16: the same blocks share their feature caches)."""
     p = Path(path)
     if p.is_dir():
         p = p / "trunk.pt"
-    tr = read_checkpoint(p, TRUNK_KIND, how="`artformer train image-trunk` writes one")
+    how = "`artformer train image-trunk` writes one; an image checkpoint also carries one"
+    tr = read_checkpoint(p, (TRUNK_KIND, "articulation"), how=how)
+    if tr["kind"] != TRUNK_KIND:
+        enc = tr.get("image_encoder") or {}
+        if tr.get("condition") != "image" or not enc.get("trunk"):
+            raise TrunkError(f"{p} is a text checkpoint or an image checkpoint without a "
+                             f"fine-tuned trunk; {how}")
+        info = {k: v for k, v in (enc.get("trunk_info") or {}).items() if k != "tag"}
+        return {**info, "kind": TRUNK_KIND, "state_dict": enc["trunk"],
+                "tag": trunk_tag(enc["trunk"]), "source": str(p)}
     if not tr["state_dict"]:
         raise TrunkError(f"{p} is not an `artformer train image-trunk` file (no weights)")
     if trunk_tag(tr["state_dict"]) != tr.get("tag"):
