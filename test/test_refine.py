@@ -767,6 +767,49 @@ def test_tall_drawers_side_by_side_become_a_stack_unless_the_prompt_says_so():
         assert obj.parts[1].bbox_size[2] > obj.parts[1].bbox_size[1]
 
 
+def test_fronts_cut_to_slivers_are_laid_out_again_as_a_stack_and_doors():
+    """Two doors and two drawers decoded on top of each other (the shipped model's "a sideboard
+    with two drawers and two doors", seed 1): the cuts left a door and a drawer a few cm wide;
+    the face is laid out again as two doors side by side and a stack of two drawers, every
+    front at least SLIVER across, none overlapping. A prompt that places them keeps its own."""
+    from model.refine.siblings import SLIVER
+
+    def heaped():
+        def front(name, label, lo, hi, z):
+            y, w = (lo + hi) / 2, hi - lo
+            size, centre = (0.36, w, z[1] - z[0]), (0.07, y, sum(z) / 2)
+            if label == "drawer":
+                j = Joint(JointType.PRISMATIC, (0.25, y, centre[2]), (1, 0, 0), t_range=(0, 0.28))
+            else:
+                size, centre = (0.02, w, z[1] - z[0]), (0.24, y, sum(z) / 2)
+                j = Joint(JointType.REVOLUTE, (0.25, lo, centre[2]), (0, 0, 1), r_range=(0, 1.5))
+            return _part(name, label, 0, size, centre, j)
+        return ArticulatedObject(category="StorageFurniture", name="heaped", parts=[
+            _part("body_0", "body", -1, (0.51, 0.94, 1.02), (0, 0.014, 0.53)),
+            front("door_0", "door", -0.078, 0.359, (0.237, 0.912)),
+            front("door_1", "door", -0.392, -0.005, (0.188, 0.802)),
+            front("drawer_0", "drawer", -0.113, 0.440, (0.361, 0.750)),
+            front("drawer_1", "drawer", -0.431, 0.037, (0.358, 0.664))])
+    obj = heaped()
+    assert refine_layout(obj)["retiled"] == 1
+    fronts = obj.parts[1:]
+    for a in fronts:
+        assert min(a.bbox_size[1:]) >= SLIVER, (a.name, a.bbox_size)
+        for b in fronts:
+            assert a is b or not _boxes_overlap(a, b), (a.name, b.name)
+    d0, d1 = (p for p in fronts if p.label == "drawer")
+    assert d0.bbox_center[1] == pytest.approx(d1.bbox_center[1])        # one stack
+    doors = [p for p in fronts if p.label == "door"]
+    assert doors[0].bbox_center[2] == pytest.approx(doors[1].bbox_center[2])   # side by side
+    # both doors hinge on the edge away from the stack: opened, neither swings into a drawer
+    away = -np.sign(d0.bbox_center[1] - doors[0].bbox_center[1])
+    for door in doors:
+        edge = door.bbox_center[1] + away * door.bbox_size[1] / 2
+        assert door.joint.origin[1] == pytest.approx(edge), door.name
+    placed = heaped()
+    assert refine_layout(placed, stated={"door": {"hpos": ["left"]}}).get("retiled", 0) == 0
+
+
 def test_a_full_grid_of_uneven_drawers_gets_equal_cells():
     def drawer(n, y, z, w, h):
         return _part(f"drawer_{n}", "drawer", 0, (0.4, w, h), (0.05, y, z),

@@ -272,21 +272,31 @@ def _neighbours_side(obj: ArticulatedObject, i: int, face: tuple[int, float], a:
     knobs beside an oven door) all lie on its -u / +u side, else 0. The panel is then hinged
     on the edge away from them, as double doors are: hinged at the centre, two doors swing
     into each other's handles, and a door's hinge edge sweeps its thickness past the hinge
-    line into the knobs beside it."""
+    line into the knobs beside it. Drawers beside a door on a vertical hinge come first: one
+    hinged next to a stack of drawers swings into them as they slide out, so it turns away
+    from them (the inner door of a pair beside a stack too, both then opening one way)."""
     p = obj.parts[i]
     lo, hi = _lohi(p)
-    sides = set()
+    sides, slides = set(), set()
     for c in obj.children(p.parent):
         q = obj.parts[c]
-        if c == i or q.label not in (p.label, *CONTROLS) \
+        if c == i or q.label not in (p.label, *CONTROLS, *SLIDERS) \
                 or face_of(obj, c) != face:
             continue
         qlo, qhi = _lohi(q)
         shared = min(hi[a], qhi[a]) - max(lo[a], qlo[a])
         if shared < 0.5 * min(hi[a] - lo[a], qhi[a] - qlo[a]):
             continue
-        sides.add(int(np.sign(q.bbox_center[u] - p.bbox_center[u])))
-    return sides.pop() if len(sides) == 1 and 0 not in sides else 0
+        side = int(np.sign(q.bbox_center[u] - p.bbox_center[u]))
+        if q.label in SLIDERS:
+            if a == 2:           # beside a door turning about a vertical axis
+                slides.add(side)
+            continue
+        sides.add(side)
+    for group in (slides, sides):
+        if group:
+            return group.pop() if len(group) == 1 and 0 not in group else 0
+    return 0
 
 
 def _slide(obj: ArticulatedObject, i: int, face: tuple[int, float]) -> None:

@@ -128,6 +128,47 @@ def _restack(obj: ArticulatedObject, drawers: list[int], facts: dict) -> int:
     return done
 
 
+SLIVER = 0.06       # m: a storage front narrower or lower than this is no door or drawer
+PLACED = {"layout", "rows", "columns", "hpos", "vpos", "above", "below"}   # stated facts
+
+
+def _retile(obj: ArticulatedObject, members: list[int], stated: dict) -> int:
+    """Doors and drawers that the cuts left as slivers (a front under ``SLIVER`` across: the
+    network had decoded them on top of each other) are laid out again over the rectangle the
+    face's fronts cover: the drawers one stack, the doors side by side, the two blocks next
+    to each other in the order of their centres, each as wide as its share of the columns (a
+    column per door, one for the stack), ``GAP`` apart. Not where the prompt states their
+    arrangement or places, or other parts than fronts share the face.
+    -> 1 if laid out again."""
+    from .arrange import H, V, _lay_out, _place
+
+    fronts = [i for i in members if obj.parts[i].label in HEAPS]
+    if not fronts or len(fronts) < len(members) \
+            or any(set(stated.get(lab) or {}) & PLACED for lab in HEAPS) \
+            or all(min(obj.parts[i].bbox_size[H], obj.parts[i].bbox_size[V]) >= SLIVER
+                   for i in fronts):
+        return 0
+    lo, hi = _union([obj.parts[i] for i in fronts])
+    blocks = [[i for i in fronts if obj.parts[i].label == lab] for lab in HEAPS]
+    blocks = sorted((b for b in blocks if b),
+                    key=lambda b: np.mean([obj.parts[i].bbox_center[H] for i in b]))
+    cols = [1 if obj.parts[b[0]].label == "drawer" else len(b) for b in blocks]
+    step = (hi[H] - lo[H]) / sum(cols)
+    left = lo[H]
+    for block, n in zip(blocks, cols):
+        right = left + n * step
+        centre, size = (lo + hi) / 2, hi - lo
+        centre[H], size[H] = (left + right) / 2, right - left - GAP
+        for i in block:                            # the block's rectangle, then its cells
+            c, z = centre.copy(), size.copy()
+            c[0], z[0] = obj.parts[i].bbox_center[0], obj.parts[i].bbox_size[0]   # depth kept
+            _place(obj, i, c, z)
+        _lay_out(obj, block, [1] * len(block) if n == 1 and len(block) > 1 else [len(block)],
+                 gap=GAP)
+        left = right
+    return 1
+
+
 def _groups(obj: ArticulatedObject, members: list[int]) -> list[list[int]]:
     """The drawers and the doors among ``members``, by label, two or more each."""
     out = [[i for i in members if obj.parts[i].label == label] for label in HEAPS]
@@ -677,6 +718,9 @@ def siblings(obj: ArticulatedObject, cfg: LayoutConfig, report: dict,
             if cfg.fill and obj.category in FILL_FRAME:
                 report["filled"] = report.get("filled", 0) + _fill(obj, par, members, k,
                                                                         stated or {})
+            if cfg.heaps and k == 0 and obj.category == "StorageFurniture":
+                report["retiled"] = report.get("retiled", 0) + _retile(obj, members,
+                                                                       stated or {})
             if cfg.fill and obj.category in RACKS:
                 report["racks"] = report.get("racks", 0) + _racks(obj, par, members, k, s,
                                                                   stated)
