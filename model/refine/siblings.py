@@ -140,7 +140,7 @@ def _retile(obj: ArticulatedObject, members: list[int], stated: dict) -> int:
     column per door, one for the stack), ``GAP`` apart. Not where the prompt states their
     arrangement or places, or other parts than fronts share the face.
     -> 1 if laid out again."""
-    from .arrange import H, V, _lay_out, _place
+    from .arrange import FRONT, H, V, _lay_out, _place
 
     fronts = [i for i in members if obj.parts[i].label in HEAPS]
     if not fronts or len(fronts) < len(members) \
@@ -152,19 +152,19 @@ def _retile(obj: ArticulatedObject, members: list[int], stated: dict) -> int:
     blocks = [[i for i in fronts if obj.parts[i].label == lab] for lab in HEAPS]
     blocks = sorted((b for b in blocks if b),
                     key=lambda b: np.mean([obj.parts[i].bbox_center[H] for i in b]))
-    cols = [1 if obj.parts[b[0]].label == "drawer" else len(b) for b in blocks]
+    stack = [obj.parts[b[0]].label == "drawer" for b in blocks]
+    cols = [1 if st else len(b) for b, st in zip(blocks, stack)]
     step = (hi[H] - lo[H]) / sum(cols)
     left = lo[H]
-    for block, n in zip(blocks, cols):
+    for block, n, st in zip(blocks, cols, stack):
         right = left + n * step
         centre, size = (lo + hi) / 2, hi - lo
         centre[H], size[H] = (left + right) / 2, right - left - GAP
-        for i in block:                            # the block's rectangle, then its cells
+        for i in block:                  # the block's rectangle (depth kept), then its cells
             c, z = centre.copy(), size.copy()
-            c[0], z[0] = obj.parts[i].bbox_center[0], obj.parts[i].bbox_size[0]   # depth kept
+            c[FRONT], z[FRONT] = obj.parts[i].bbox_center[FRONT], obj.parts[i].bbox_size[FRONT]
             _place(obj, i, c, z)
-        _lay_out(obj, block, [1] * len(block) if n == 1 and len(block) > 1 else [len(block)],
-                 gap=GAP)
+        _lay_out(obj, block, [1] * len(block) if st else [len(block)], gap=GAP)
         left = right
     return 1
 
