@@ -845,3 +845,26 @@ def test_drawers_of_different_depths_stay_flush_and_a_door_over_them_gives_way()
     assert max(fronts) - min(fronts) < 1e-9 and fronts[0] > 0.25 - 0.005
     for d in drawers:
         assert not _boxes_overlap(d, door)
+
+
+def test_slab_and_block_handles_get_a_bars_grip_and_knobs_stay():
+    """Handles decoded as a 21 x 8 cm slab or a 10 x 12 cm block on a door get the grip of the
+    data's bars across their long side (centre kept); a 4 x 4 cm knob and a 1.4 cm bar stay."""
+    from model.refine.layout import HANDLE_BAR, _slim_handles
+    obj = ArticulatedObject(category="StorageFurniture", name="h", parts=[
+        _part("body_0", "body", -1, (0.5, 1.0, 1.0), (0, 0, 0.5)),
+        _part("door_0", "door", 0, (0.02, 0.45, 0.8), (0.26, -0.25, 0.5),
+              Joint(JointType.REVOLUTE, (0.27, -0.475, 0.5), (0, 0, 1), r_range=(0, 1.5))),
+        _part("handle_0", "handle", 1, (0.03, 0.21, 0.08), (0.285, -0.1, 0.5)),    # slab
+        _part("handle_1", "handle", 1, (0.03, 0.10, 0.12), (0.285, -0.2, 0.7)),    # block
+        _part("handle_2", "handle", 1, (0.03, 0.04, 0.04), (0.285, -0.3, 0.3)),    # knob
+        _part("handle_3", "handle", 1, (0.03, 0.014, 0.25), (0.285, -0.4, 0.5)),   # bar
+    ])
+    centres = [p.bbox_center.copy() for p in obj.parts]
+    assert _slim_handles(obj) == 2
+    slab, block, knob, bar = (p.bbox_size for p in obj.parts[2:])
+    assert slab[2] == pytest.approx(HANDLE_BAR) and slab[1] == pytest.approx(0.21)
+    assert block[1] == pytest.approx(HANDLE_BAR) and block[2] == pytest.approx(0.12)
+    assert knob[1:] == pytest.approx((0.04, 0.04)) and bar[1:] == pytest.approx((0.014, 0.25))
+    assert all(np.allclose(c, p.bbox_center) for c, p in zip(centres, obj.parts))
+    assert refine_layout(obj)["slimmed"] == 0          # refinement runs it: none left

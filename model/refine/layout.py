@@ -388,6 +388,33 @@ def _thicken(obj: ArticulatedObject) -> int:
     return n
 
 
+HANDLE_GRIP = 0.03    # m: the thickest grip of the data's door and drawer handles (bars 1-1.6
+                      # cm thick; knob caps up to 4.8 cm across, model/data/synth/builder.py)
+HANDLE_KNOB = 0.05    # m: a pull at most this long both ways is a knob, whatever its grip
+HANDLE_BAR = 0.016    # m: the grip a thicker decoded handle gets, along its long side
+
+
+def _slim_handles(obj: ArticulatedObject) -> int:
+    """A handle on a door, drawer or lid decoded as a slab or block (a 21 x 8 cm bar, a
+    10 x 12 cm block on a microwave door) gets a bar's grip: across its long side on the
+    panel it is ``HANDLE_BAR`` thick, centre kept; knobs (``HANDLE_KNOB``) and handles
+    ``HANDLE_GRIP`` thick or thinner stay. -> handles slimmed."""
+    n = 0
+    for i, p in enumerate(obj.parts):
+        if p.label != "handle" or p.parent < 0 \
+                or obj.parts[p.parent].label not in PANELS + SLIDERS:
+            continue
+        face = face_of(obj, i)
+        if face is None:
+            continue
+        short, long = sorted((d for d in range(3) if d != face[0]), key=lambda d: p.bbox_size[d])
+        if p.bbox_size[short] > HANDLE_GRIP and p.bbox_size[long] > HANDLE_KNOB:
+            p.bbox_size = p.bbox_size.copy()
+            p.bbox_size[short] = HANDLE_BAR
+            n += 1
+    return n
+
+
 def refine_layout(obj: ArticulatedObject, config: Optional[LayoutConfig] = None,
                   stated: Optional[dict] = None) -> dict:
     """Refine ``obj``'s boxes and joints in place (before meshing); returns what changed.
@@ -400,6 +427,7 @@ def refine_layout(obj: ArticulatedObject, config: Optional[LayoutConfig] = None,
         report["snapped"] = int(sum(not np.allclose(b, obj.parts[i].joint.axis)
                                     for b, i in zip(before, obj.movable_parts())))
     report["thickened"] = _thicken(obj)
+    report["slimmed"] = _slim_handles(obj)
     order = obj.topological_order()            # parents first: children follow moved parents
     if cfg.attach:
         report["caps_seated"] = sum(_seat_cap(obj, i) for i in order)
