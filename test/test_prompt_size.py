@@ -6,7 +6,8 @@ import pytest
 from model.core import ArticulatedObject, Joint, JointType, Part
 from model.data.expected_structure import ExpectedStructure
 from model.data.prompt_parse import parse_prompt
-from model.data.prompt_size import read_size, with_usual_layout, with_usual_size
+from model.data.prompt_size import (read_size, with_usual_keypad, with_usual_layout,
+                                    with_usual_size)
 from model.metrics.alignment import GeneratedStructure, check_alignment
 from model.refine.size import scale_to_size, size_factors
 
@@ -51,6 +52,18 @@ def test_a_microwave_gets_its_control_column_beside_the_door_unless_sides_are_st
                  "a microwave with a row of knobs", "an oven with two knobs"):
         spatial = parse_prompt(text).spatial
         assert with_usual_layout(text, "Oven", spatial) == spatial
+
+
+def test_a_safes_uncounted_keypad_gets_the_usual_three_by_three_keys():
+    said = parse_prompt("a safe with a keypad and a door")
+    assert said.min_counts == {"button": 2}                      # the stated fact
+    usual = with_usual_keypad("a safe with a keypad and a door", said)
+    assert usual.min_counts["button"] == 9 and usual.spatial["button"] == {"columns": 3}
+    assert said.min_counts == {"button": 2}                      # not changed in place
+    for text in ("a safe with a 4 x 3 keypad", "a safe with a keypad of six buttons",
+                 "a microwave with a keypad", "a safe with a door and a dial"):
+        e = parse_prompt(text)
+        assert with_usual_keypad(text, e) == e, text
 
 
 def test_size_round_trips_through_the_annotation_line():

@@ -138,3 +138,16 @@ def test_a_microwave_keypad_is_a_column_of_controls_beside_its_door(gen):
         knobs = [p.bbox_center[2] for p in ctrl if p.label == "knob"]
         buttons = [p.bbox_center[2] for p in ctrl if p.label == "button"]
         assert not knobs or min(knobs) > max(buttons), seed
+
+
+def test_a_safes_keypad_is_a_three_by_three_grid_on_its_door(gen):
+    """"A safe with a keypad and a door": the usual keypad of the data, nine buttons on the
+    door in three rows of three, none overlapping (seeds 0-2)."""
+    for seed in range(3):
+        trees, *_ = gen.decode_trees("a safe with a keypad and a door", seed=seed)
+        obj = gen.layout(trees[0])
+        keys = [p for p in obj.parts if p.label == "button"]
+        assert len(keys) == 9 and all(obj.parts[p.parent].label == "door" for p in keys), seed
+        for ax in (1, 2):                                  # three columns and three rows
+            assert len(np.unique(np.round([p.bbox_center[ax] for p in keys], 4))) == 3, seed
+

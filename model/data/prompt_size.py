@@ -8,7 +8,8 @@ side. A value outside 1 cm - 5 m is not a size a generated object can take and i
 ``with_usual_size`` adds the usual size of everyday objects the data lacks at their size for
 the dimensions the text leaves open (``NAMED_SIZES``: a microwave is read as an oven, whose
 data is 45-95 cm tall, so without it "a microwave" came out oven-sized); ``with_usual_layout``
-their usual arrangement (``NAMED_LAYOUTS``: a microwave's controls beside its door).
+their usual arrangement (``NAMED_LAYOUTS``: a microwave's controls beside its door);
+``with_usual_keypad`` a keypad the text does not count its usual keys.
 """
 from __future__ import annotations
 
@@ -106,3 +107,30 @@ def with_usual_size(text: str, category: str | None, stated: dict | None) -> dic
                 out.setdefault(dim, value)
             break
     return out
+
+
+# A safe's keypad the text does not count ("a safe with a keypad", read as at least two
+# buttons): the data's middle keypad, 3 x 3 (model/data/synth/cabinets.py draws 1x3 to 4x3 on
+# a safe's door; no other category of the data has a keypad)
+USUAL_KEYPAD = (3, 3)
+_KEYPAD = re.compile(r"\b(?:keypad|number ?pad|numpad)s?\b", re.I)
+
+
+def with_usual_keypad(text: str, expected):
+    """``expected`` (a parsed prompt, ``ExpectedStructure``) with a safe's uncounted keypad's
+    buttons at least ``USUAL_KEYPAD``'s keys, three to a row unless the text arranges them:
+    what generation holds ("a safe with a keypad" gets a 3 x 3 keypad, not two keys). Not a
+    stated fact: the alignment metric checks the prompt's own lower bound."""
+    from dataclasses import replace
+
+    if expected.category != "Safe" or not _KEYPAD.search(text) \
+            or "button" in expected.counts or "button" not in expected.min_counts:
+        return expected
+    rows, cols = USUAL_KEYPAD
+    facts = dict(expected.spatial.get("button") or {})
+    if not facts.keys() & {"layout", "rows", "columns"}:
+        facts["columns"] = cols
+    return replace(expected, min_counts={**expected.min_counts,
+                                         "button": max(expected.min_counts["button"],
+                                                       rows * cols)},
+                   spatial={**expected.spatial, "button": facts})
