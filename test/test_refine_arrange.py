@@ -246,6 +246,19 @@ def test_a_handle_across_a_stated_keypad_moves_off_it():
     assert min(obj.parts[i].bbox_size[2] for i in buttons) > 0.02   # none squashed
 
 
+def test_a_keypads_keys_are_no_bigger_than_the_datas():
+    """Keys decoded 6 cm across (the shipped model's safe keypads) are laid out in the stated
+    grid at most KEY across, as the data's 2.2 cm keys are."""
+    from model.refine.arrange import KEY
+    obj = _safe_door_with_keypad(handle_z=0.4)
+    for i in range(2, 11):
+        obj.parts[i].bbox_size = np.array([0.01, 0.06, 0.06])
+    _layout(obj, "a safe with a 3x3 keypad on its door")
+    keys = [obj.parts[i] for i in range(2, 11)]
+    assert _grid_of(obj, list(range(2, 11))) == ("grid", 3, 3)
+    assert all(max(p.bbox_size[1:]) <= KEY + 1e-9 for p in keys)
+
+
 def _range(knobs):
     parts = [_part("body_0", "body", -1, (0.5, 0.7, 0.8), (0, 0, 0.4)),
              _part("door_0", "door", 0, (0.04, 0.66, 0.56), (0.26, 0.0, 0.36),

@@ -34,6 +34,7 @@ from .layout import (CLEAR, ON_FACE, PANELS, SIDE_HINGED, _lohi, _move_subtree, 
                      frame_of)
 
 GAP_SHARE = 0.06       # of a cell's side, between neighbouring cells
+KEY = 0.03             # m: a keypad key's side at most (the data's safe keys: 2.2 cm at most)
 DEEP = 1.5             # a knob's or dial's depth at most this many times its width
 THIN = 0.5             # a panel's thickness at most this share of its smaller side
 FRONT = 0              # the face normal of a front / back face (object frame: x forward)
@@ -544,6 +545,9 @@ def _lay_out(obj: ArticulatedObject, group: list[int], per_row: list[int],
                 size[H], size[V] = width - gap, height - gap
             if obj.parts[i].label in ON_FACE:
                 size[H], size[V] = min(size[H], own[H]), min(size[V], own[V])
+                if obj.parts[i].label == "button" and parent >= 0 \
+                        and obj.parts[parent].label in PANELS:   # a keypad's keys
+                    size[H], size[V] = min(size[H], KEY), min(size[V], KEY)
                 size = _round(obj.parts[i].label, size)
             if obj.parts[i].label in PANELS:    # a panel stays thinner than it is wide, so
                 size[FRONT] = min(size[FRONT], THIN * min(size[H], size[V]))   # its face holds
