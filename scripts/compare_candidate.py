@@ -91,7 +91,10 @@ def main(argv: list[str]) -> int:
     args = ap.parse_args(argv)
     runs = Path(args.runs)
     c, s = measures(runs, "candidate"), measures(runs, "shipped")
-    fmt = lambda v: "–" if v is None else (f"{v:.3f}" if isinstance(v, float) else str(v))  # noqa: E731
+
+    def fmt(v):
+        return "–" if v is None else (f"{v:.3f}" if isinstance(v, float) else str(v))
+
     lines = ["| measure | candidate | shipped | |", "|---|---|---|---|"]
     for key in c:
         mark = ""
