@@ -26,6 +26,8 @@ SPATIAL_KEYS: dict[str, tuple[str, ...]] = {
 SPATIAL_KINDS = {"hinge": "hinge", "opens": "opening", "layout": "arrangement",
                  "rows": "arrangement", "columns": "arrangement", "hpos": "position",
                  "vpos": "position", "above": "position", "below": "position"}
+ARRANGEMENT_KEYS = frozenset(k for k, kind in SPATIAL_KINDS.items() if kind == "arrangement")
+POSITION_KEYS = frozenset(k for k, kind in SPATIAL_KINDS.items() if kind == "position")
 
 
 @dataclass

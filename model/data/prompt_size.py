@@ -16,6 +16,7 @@ from __future__ import annotations
 import re
 
 from model.core.structure import SIZE_LIMITS as LIMITS
+from model.data.expected_structure import ARRANGEMENT_KEYS
 
 AXIS = {"depth": 0, "width": 1, "height": 2}   # the object frame: x front-back, y left-right
 
@@ -128,7 +129,7 @@ def with_usual_keypad(text: str, expected):
         return expected
     rows, cols = USUAL_KEYPAD
     facts = dict(expected.spatial.get("button") or {})
-    if not facts.keys() & {"layout", "rows", "columns"}:
+    if not facts.keys() & ARRANGEMENT_KEYS:
         facts["columns"] = cols
     return replace(expected, min_counts={**expected.min_counts,
                                          "button": max(expected.min_counts["button"],

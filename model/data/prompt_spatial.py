@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 from model.data import vocab
 
+from .expected_structure import ARRANGEMENT_KEYS
 from .prompt_lexicon import SIDE_ADJECTIVES, STOP_WORDS, _Tok, _tokenize
 
 _N = r"(\d+|" + "|".join(sorted(vocab.NUMBER_WORDS[1:13], key=len, reverse=True)) + r"|a single|single)"
@@ -296,7 +297,7 @@ def _attach(facts: list[_Fact], toks: list[_Tok], earlier: list[str],
     parts = [t for t in toks if t.kind == "PART"]
     for f in sorted(facts, key=lambda f: f.implied):     # what is said before what is implied
         allowed = HINGED if f.key in ("hinge", "opens") else \
-            ARRANGED if f.key in ("layout", "rows", "columns") else vocab.COUNTABLE_LABELS
+            ARRANGED if f.key in ARRANGEMENT_KEYS else vocab.COUNTABLE_LABELS
         if f.key == "relit":
             # "below it, a small door" / "three doors below them": one part kind relative to
             # the one named before
@@ -343,7 +344,7 @@ def _attach(facts: list[_Fact], toks: list[_Tok], earlier: list[str],
                     break
         if target is None:
             before = [t for t in parts if t.end <= f.start and t.value in allowed]
-            if f.key in ("layout", "rows", "columns"):
+            if f.key in ARRANGEMENT_KEYS:
                 # an arrangement is of several parts: "two knobs below the door, side by side"
                 before = [t for t in before if t.plural] or before
             target = before[-1].value if before else None
@@ -369,7 +370,7 @@ def _attach(facts: list[_Fact], toks: list[_Tok], earlier: list[str],
             continue
         if f.key in ("hinge", "opens"):
             hinged.append(target)
-        if f.key in ("layout", "rows", "columns"):
+        if f.key in ARRANGEMENT_KEYS:
             facts_of[f.key] = f.values[0]
         else:
             _merge(facts_of, f.key, f.values)

@@ -19,6 +19,7 @@ from typing import Iterable, Sequence
 
 from model.core import ArticulatedObject, JointType
 
+from model.data.expected_structure import ARRANGEMENT_KEYS
 from model.data.prompt_parse import SPATIAL_KINDS, ExpectedStructure, parse_prompt
 
 SPATIAL_KIND_NAMES = ("hinge", "opening", "arrangement", "position", "size")
@@ -73,7 +74,7 @@ def _fact_ok(key: str, want, label: str, got: dict) -> bool:
     have = got.get(label)
     if not have:
         return False
-    if key in ("layout", "rows", "columns"):
+    if key in ARRANGEMENT_KEYS:
         return have.get(key) == want
     if key in ("above", "below"):
         from model.data.describe import is_above

@@ -29,6 +29,7 @@ from typing import Optional
 import numpy as np
 
 from model.core import ArticulatedObject
+from model.data.expected_structure import ARRANGEMENT_KEYS
 
 from .layout import (CLEAR, ON_FACE, PANELS, SIDE_HINGED, _lohi, _move_subtree, _union, face_of,
                      frame_of)
@@ -56,7 +57,7 @@ def arrange_stated(obj: ArticulatedObject, spatial: Optional[dict]) -> list[str]
             grids.append(group)
             done.append(f"{label}: {len(grid)} x {max(grid)}")
     laid = {lab for lab, f in (spatial or {}).items()          # a stated row stays a row
-            if any(f.get(k) for k in ("layout", "rows", "columns"))}
+            if any(f.get(k) for k in ARRANGEMENT_KEYS)}
     for label, facts in (spatial or {}).items():
         banded = set()
         for low, high, ax, share in _stated_bands(obj, label, spatial):

@@ -8,6 +8,7 @@ from typing import Optional
 import numpy as np
 
 from model.core import ArticulatedObject
+from model.data.expected_structure import ARRANGEMENT_KEYS, POSITION_KEYS
 
 from .layout import (CLEAR, CONTROLS, GAP, MIN_KEEP, PANELS, SLIDERS, SMALL, LayoutConfig,
                      _attach, _lohi, _move_subtree, _principal, _set, _union, face_of)
@@ -129,7 +130,7 @@ def _restack(obj: ArticulatedObject, drawers: list[int], facts: dict) -> int:
 
 
 SLIVER = 0.06       # m: a storage front narrower or lower than this is no door or drawer
-PLACED = {"layout", "rows", "columns", "hpos", "vpos", "above", "below"}   # stated facts
+PLACED = ARRANGEMENT_KEYS | POSITION_KEYS   # stated facts that keep a face's own layout
 
 
 def _retile(obj: ArticulatedObject, members: list[int], stated: dict) -> int:
@@ -252,7 +253,7 @@ def _drawer_handles(obj: ArticulatedObject, drawers: list[int]) -> int:
 
 
 ROW_OVERLAP = 0.9   # of the median size across a row: centres closer than this share a row
-ARRANGED = {"layout", "rows", "columns"}   # stated facts whose rows model.refine.arrange laid
+ARRANGED = ARRANGEMENT_KEYS   # stated facts whose rows model.refine.arrange laid
 
 
 def _space_small(obj: ArticulatedObject, members: list[int], k: int,
