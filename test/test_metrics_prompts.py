@@ -58,6 +58,11 @@ CASES = [
      "StorageFurniture", {"door": 2, "drawer": 1}, {}, {}),
     ("a cabinet. The door is on the left. The door is on its left.", "StorageFurniture",
      {"door": 1}, {}, {}),
+    # a number after "at least" or before "or more" is a lower bound
+    ("a washer with at least four buttons and a door", "WashingMachine", {"door": 1},
+     {"button": 4}, {}),
+    ("a cabinet with three or more drawers and no fewer than 2 doors", "StorageFurniture", {},
+     {"drawer": 3, "door": 2}, {}),
 ]
 
 

@@ -88,6 +88,9 @@ DEFINITE = {"the", "this", "these", "those", "that", "its", "their", "his", "her
             "each", "every", "any", "which", "whose"}
 LOWER_BOUND_WORDS = {"both": 2, "several": 2, "multiple": 2, "many": 2, "some": 1,
                      "various": 2, "numerous": 2, "a few": 2, "a number of": 2, "lots of": 2}
+# words before a number that make it a lower bound ("at least four buttons")
+LOWER_BOUND_PHRASES = (("at", "least"), ("no", "fewer", "than"), ("no", "less", "than"),
+                       ("not", "less", "than"), ("not", "fewer", "than"), ("minimum", "of"))
 ZERO_WORDS = ("no", "without", "zero", "lacks", "lacking", "none of")
 DISTRIBUTIVE = ("each", "every", "per", "each of the", "every one of the", "both with")
 EXACT_NUMBER_PHRASES = {"a pair of": 2, "pair of": 2, "a couple of": 2, "couple of": 2,

@@ -46,7 +46,8 @@ from .expected_structure import (SIDES, SPATIAL_KEYS, SPATIAL_KINDS,  # noqa: F4
                                  ExpectedStructure, read_annotated_prompts)
 from .prompt_lexicon import (DEFINITE, DISTRIBUTIVE, EXACT_NUMBER_PHRASES,  # noqa: F401
                              EXTRA_CATEGORY, EXTRA_MOTION, EXTRA_PART, GENERIC_ROTATION,
-                             LOWER_BOUND_WORDS, REVOLUTE_OR_CONTINUOUS, SIDE_ADJECTIVES,
+                             LOWER_BOUND_PHRASES, LOWER_BOUND_WORDS,
+                             REVOLUTE_OR_CONTINUOUS, SIDE_ADJECTIVES,
                              STOP_WORDS, ZERO_WORDS, _motion_in_phrase, _sentences, _Tok,
                              _tokenize)
 from .prompt_size import read_size
@@ -81,6 +82,10 @@ def _scan_quantifier(toks: list[_Tok], k: int, m: _Mention, motions: list) -> No
     while j >= 0 and adjectives <= 4:
         t = toks[j]
         if t.kind == "WORD":
+            if t.text == "more" and j >= 2 and toks[j - 1].text == "or" \
+                    and toks[j - 2].kind == "NUM":          # "three or more drawers"
+                m.lower = int(toks[j - 2].value) * mult
+                return
             if t.text in STOP_WORDS:
                 break
             if t.text in SIDE_ADJECTIVES:
@@ -95,7 +100,10 @@ def _scan_quantifier(toks: list[_Tok], k: int, m: _Mention, motions: list) -> No
                 m.lower = 2 * mult
                 return
         elif t.kind == "NUM":
-            m.exact = int(t.value) * mult
+            if _after_lower_bound(toks, j):               # "at least four buttons"
+                m.lower = int(t.value) * mult
+            else:
+                m.exact = int(t.value) * mult
             return
         elif t.kind == "ZERO":
             m.zero = True
@@ -113,6 +121,12 @@ def _scan_quantifier(toks: list[_Tok], k: int, m: _Mention, motions: list) -> No
         j -= 1
     m.lower = 2 if m.plural else 1
     m.single = not m.plural
+
+
+def _after_lower_bound(toks: list[_Tok], j: int) -> bool:
+    """Whether the number at j follows "at least", "no fewer than", "a minimum of"..."""
+    before = tuple(t.text for t in toks[max(0, j - 3):j])
+    return any(before[len(before) - len(p):] == p for p in LOWER_BOUND_PHRASES)
 
 
 def _distributive_target(toks: list[_Tok], k: int) -> str | None:
