@@ -213,3 +213,42 @@ def test_a_transformer_trained_against_another_prior_is_refused(tiny_model_facto
     Generator.load(GenerationConfig(checkpoint=str(a)))              # its own prior: loads
     with pytest.raises(GenerationError, match="another shape prior"):
         Generator.load(GenerationConfig(checkpoint=str(mixed)))
+
+
+def test_image_model_runs_with_its_own_prior_from_image_prior_folder(tmp_path, tiny,
+                                                                      tiny_image_model):
+    """A folder whose text model was trained against a newer shape prior than its image model
+    keeps image requests working: image_prior/ holds the image model's prior, which image
+    requests (and only they) sample and decode with. Without it the image model is refused;
+    a half-filled image_prior/ is an error."""
+    import shutil
+
+    from PIL import Image
+
+    from model.pipeline.generator import Generator, find_checkpoints
+    folder = tmp_path / "both"
+    folder.mkdir()
+    for f in ("transformer.pt", "sdf.pt", "prior.pt"):
+        shutil.copy(Path(tiny) / f, folder / f)
+    shutil.copy(Path(tiny_image_model) / "image.pt", folder / "image.pt")
+    kw = dict(checkpoint=str(folder), resolution=16, steps=2, threads=1)
+    assert not Generator.load(GenerationConfig(**kw)).supports_image   # another prior: refused
+    (folder / "image_prior").mkdir()
+    shutil.copy(Path(tiny_image_model) / "sdf.pt", folder / "image_prior" / "sdf.pt")
+    with pytest.raises(GenerationError, match="both sdf"):
+        find_checkpoints(folder)
+    shutil.copy(Path(tiny_image_model) / "prior.pt", folder / "image_prior" / "prior.pt")
+    gen = Generator.load(GenerationConfig(**kw))
+    assert gen.supports_image and gen.image_shape is not gen.shape
+    assert gen.image_shape.info["fingerprint"] != gen.shape.info["fingerprint"]
+    used = []
+    for name, shape in (("text", gen.shape), ("image", gen.image_shape)):
+        decode = shape.decode_grids
+        shape.decode_grids = lambda z, _d=decode, _n=name, **k: used.append(_n) or _d(z, **k)
+    png = tmp_path / "photo.png"
+    Image.new("RGB", (64, 64), (120, 90, 60)).save(png)
+    assert gen.generate(image=str(png), seed=0)[0].obj.parts
+    assert set(used) == {"image"}
+    used.clear()
+    assert gen.generate(text="a cabinet with two doors", seed=0)[0].obj.parts
+    assert set(used) == {"text"}

@@ -11,30 +11,44 @@ from model.pipeline.api import GenerationError
 
 WEIGHTS_DIR = Path(__file__).resolve().parent.parent / "weights"
 STAGES = ("transformer", "sdf", "prior", "image")
+# a sub-folder with the shape prior (sdf*.pt + prior*.pt) the image model was trained against,
+# for a folder whose text model has moved on to a newer prior than its image model
+IMAGE_PRIOR_DIR = "image_prior"
 
 
 def find_checkpoints(folder: Union[str, os.PathLike, None]) -> dict[str, Optional[Path]]:
     """Stage → checkpoint file in a folder (``<stage>.pt`` or the one ``<stage>_*.pt``).
 
-    The image stage is optional; the other three must exist.
+    The image stage is optional; the other three must exist. ``image_sdf`` / ``image_prior``:
+    the image model's own shape prior from the ``image_prior/`` sub-folder, both or neither
+    (None: the image model runs with the folder's prior).
     """
     root = Path(folder) if folder else WEIGHTS_DIR
     if not root.is_dir():
         raise GenerationError(f"checkpoint folder {root} does not exist; pass the folder that "
                               f"holds transformer*.pt, sdf*.pt and prior*.pt")
-    found: dict[str, Optional[Path]] = {}
-    for stage in STAGES:
-        exact = root / f"{stage}.pt"
-        cands = [exact] if exact.exists() else sorted(root.glob(f"{stage}_*.pt"))
-        if len(cands) > 1:
-            raise GenerationError(f"{root} holds several {stage} checkpoints "
-                                  f"({[c.name for c in cands]}); keep one or name it {stage}.pt")
-        found[stage] = cands[0] if cands else None
+    found = {stage: _one(root, stage) for stage in STAGES}
     missing = [s for s in STAGES[:3] if found[s] is None]
     if missing:
         raise GenerationError(f"{root} has no checkpoint for {missing}; train them with "
                               f"`artformer train ...` or use the shipped model (no --checkpoint)")
+    sub = root / IMAGE_PRIOR_DIR
+    own = {s: _one(sub, s) if sub.is_dir() else None for s in ("sdf", "prior")}
+    if (own["sdf"] is None) != (own["prior"] is None):
+        raise GenerationError(f"{sub} must hold both sdf*.pt and prior*.pt (the shape prior "
+                              f"the image model was trained against), or neither")
+    found.update(image_sdf=own["sdf"], image_prior=own["prior"])
     return found
+
+
+def _one(root: Path, stage: str) -> Optional[Path]:
+    """``<stage>.pt`` or the one ``<stage>_*.pt`` in root (None when there is none)."""
+    exact = root / f"{stage}.pt"
+    cands = [exact] if exact.exists() else sorted(root.glob(f"{stage}_*.pt"))
+    if len(cands) > 1:
+        raise GenerationError(f"{root} holds several {stage} checkpoints "
+                              f"({[c.name for c in cands]}); keep one or name it {stage}.pt")
+    return cands[0] if cands else None
 
 
 def check_codebooks(cfg, shape, ckpt: Path, prior: Path) -> None:

@@ -48,11 +48,14 @@ class Generator:
     """The three trained stages (+ the optional image model) and the generation loop."""
 
     def __init__(self, config: GenerationConfig, articulation, shape, image_model=None,
-                 loaded: Optional[_Loaded] = None):
+                 loaded: Optional[_Loaded] = None, image_shape=None):
         self.config = config
         self.articulation = articulation   # model.articulation.ArticulationModel
         self.shape = shape                 # model.geometry.ShapeModel
         self.image_model = image_model     # model.imaging.model.ImageArticulationModel | None
+        # the shape prior the image model's part latents are for (the text model's unless the
+        # folder has an image_prior/ sub-folder: pipeline.checkpoints.IMAGE_PRIOR_DIR)
+        self.image_shape = image_shape if image_shape is not None else shape
         self.loaded = loaded or _Loaded(paths={})
         workers = config.mesh_workers if config.mesh_workers >= 0 else default_workers()
         self.parts = PartPool(workers)     # meshing lanes (part_pool.py)
@@ -85,20 +88,26 @@ class Generator:
         except Exception as e:  # corrupt / mismatched checkpoints: say which stage
             raise GenerationError(f"could not load the model from {paths['transformer'].parent}: {e}") from e
         check_codebooks(articulation.cfg, shape, paths["transformer"], paths["prior"])
-        image_model = None
+        image_model, image_shape = None, None
         if paths["image"] is not None:
             try:
                 from model.imaging.model import load_image_model
-                image_model = load_image_model(paths["image"], prior=shape.info["fingerprint"])
-                check_codebooks(image_model.am.cfg, shape, paths["image"], paths["prior"])
+                image_shape, prior = shape, paths["prior"]
+                if paths["image_prior"] is not None:   # its own, older prior (image_prior/)
+                    image_shape = ShapeModel.load(paths["image_sdf"], paths["image_prior"])
+                    prior = paths["image_prior"]
+                image_model = load_image_model(paths["image"],
+                                               prior=image_shape.info["fingerprint"])
+                check_codebooks(image_model.am.cfg, image_shape, paths["image"], prior)
             except Exception as e:
+                image_model, image_shape = None, None
                 log.warning("image model %s not loaded (%s); image requests will be refused",
                             paths["image"], e)
         articulation.encode_text(["warm up"])   # load the text encoder now, not on request 1
         loaded = _Loaded(paths=paths, hashes={k: file_digest(p) for k, p in paths.items() if p},
                          load_seconds=time.perf_counter() - t0)
         log.info("model loaded in %.2f s from %s", loaded.load_seconds, paths["transformer"].parent)
-        gen = cls(config, articulation, shape, image_model, loaded)
+        gen = cls(config, articulation, shape, image_model, loaded, image_shape=image_shape)
         gen.parts.start()                       # helpers import now, not on request 1
         return gen
 
@@ -134,7 +143,8 @@ class Generator:
         for i, tree in enumerate(trees):
             tim = dict(timings)
             gen = torch.Generator().manual_seed(seed + i)
-            obj = self._geometry(tree, gen, tim, keep)
+            shape = self.image_shape if modality == "image" else self.shape
+            obj = self._geometry(tree, gen, tim, keep, shape)
             obj.name = _object_name(obj.category, seed + i)
             obj.metadata.update(prompt=prompt, seed=seed + i, modality=modality)
             if spec is not None:
@@ -277,8 +287,10 @@ class Generator:
         report["layout"]["handles_to_free_edge"] = free_edge_handles(obj, stated)
         return obj
 
-    def _geometry(self, tree, gen, timings: dict, keep: Optional[ArticulatedObject]) -> ArticulatedObject:
-        """Latents for every new part in one batch, meshes fitted to the predicted boxes."""
+    def _geometry(self, tree, gen, timings: dict, keep: Optional[ArticulatedObject],
+                  shape) -> ArticulatedObject:
+        """Latents for every new part in one batch from ``shape`` (the shape prior the tree's
+        decoder was trained against), meshes fitted to the predicted boxes."""
         import torch
         import trimesh
 
@@ -300,10 +312,10 @@ class Generator:
                 P = torch.as_tensor(tree.P_logits[new], dtype=torch.float32)      # (K, C, N)
                 cs = torch.as_tensor(tree.cs[new], dtype=torch.float32)           # (K, 64)
                 with torch_threads(cfg.token_threads):
-                    z = self.shape.sample_from_logits(P, cs, steps=cfg.steps, tau=cfg.temperature,
+                    z = shape.sample_from_logits(P, cs, steps=cfg.steps, tau=cfg.temperature,
                                                       guidance=cfg.guidance, generator=gen)
             if cfg.geometry == "retrieve":
-                z, _ = self.shape.retrieve(z, texts)
+                z, _ = shape.retrieve(z, texts)
         timings["diffusion"] = time.perf_counter() - t
 
         t = time.perf_counter()
@@ -315,7 +327,7 @@ class Generator:
         meshed = [n for n, k in enumerate(new) if k not in copy_of]
         with torch_threads(cfg.threads):
             res = [part_resolution(obj.parts[new[n]].bbox_size, cfg) for n in meshed]
-            grids = self.shape.decode_grids(z[meshed], resolution=res) if meshed else []
+            grids = shape.decode_grids(z[meshed], resolution=res) if meshed else []
         tasks = [PartTask(new[n], g, obj.parts[new[n]].bbox_center, obj.parts[new[n]].bbox_size,
                          prepare=cfg.refine or cfg.face_budget > 0, floaters=cfg.refine,
                          simplify=cfg.face_budget > 0)
