@@ -23,6 +23,10 @@ def _load(path: Path):
 
 
 def _audit(d, row: str):
+    """The summary of one row ("raw", "refined") of an audit.json, whose keys are the rows'
+    titles (model.metrics.audit_eval.ROWS: "raw model", "refined")."""
+    from model.metrics.audit_eval import ROWS
+    row = ROWS[row]
     if d is None or row not in d:
         return None
     objs = d[row]["objects"]

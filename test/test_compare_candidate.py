@@ -3,6 +3,8 @@ import importlib.util
 import json
 from pathlib import Path
 
+from model.metrics.audit_eval import ROWS
+
 ROOT = Path(__file__).resolve().parents[1]
 
 
@@ -22,8 +24,8 @@ def _write(runs: Path, who: str, align: float, raw: float, refined: float, colla
         m: {"iou_mean": 0.2, "collapsed": collapsed} for m in ("raw", "refined")}}))
     (runs / f"audit_{who}").mkdir()
     objs = [{"worst_components": 1}] * 95 + [{"worst_components": 4}]
-    (runs / f"audit_{who}" / "audit.json").write_text(json.dumps({
-        row: {"summary": {"sim_ready": v}, "objects": objs}
+    (runs / f"audit_{who}" / "audit.json").write_text(json.dumps({   # keyed as eval audit's
+        ROWS[row]: {"summary": {"sim_ready": v}, "objects": objs}
         for row, v in (("raw", raw), ("refined", refined))}))
     for name in ("freeform", "dev"):
         (runs / f"{name}_{who}.json").write_text(json.dumps(

@@ -675,6 +675,53 @@ def test_a_hovering_screw_cap_is_seated_on_its_jar_and_centred():
     assert refine_layout(jar)["caps_seated"] == 0          # seated caps stay where they are
 
 
+def test_a_seated_cap_turns_about_its_own_centre_line():
+    """A cap already on its jar but with its screw axis 3 cm off its centre (its sweep would
+    carve the neck away under it) keeps its place and turns about its own centre line."""
+    jar = ArticulatedObject(category="Bottle", name="jar", parts=[
+        _part("body_0", "body", -1, (0.1, 0.1, 0.2), (0, 0, 0.1)),
+        _part("cap_0", "cap", 0, (0.05, 0.05, 0.02), (0.0, 0.0, 0.205),
+              Joint(JointType.SCREW, (-0.01, 0.03, 0.2), (0, 0, 1), t_range=(0, 0.01),
+                    r_range=(0, 6.0))),
+    ])
+    assert refine_layout(jar)["caps_seated"] == 1
+    cap = jar.parts[1]
+    assert np.allclose(cap.bbox_center, (0, 0, 0.205))
+    assert np.allclose(cap.joint.origin, (0, 0, 0.2))
+
+
+@pytest.mark.parametrize("label", ["lid", "cap"])
+def test_a_lid_or_cap_hovering_over_its_parents_mesh_comes_down_onto_it(label):
+    """The layout put the lid on its parent's box, but the parent's mesh ends 3 cm short of
+    it (a sunken top): the lid, its handle and its hinge come down until the meshes touch;
+    nothing moves into the knob beside it."""
+    from model.core import meshops
+    from model.refine.meshes import SETTLE_GAP, settle_onto_parents
+    if label == "lid":
+        joint = Joint(JointType.REVOLUTE, (-0.2, 0, 0.5), (0, 1, 0), r_range=(0, 1.5))
+    else:
+        joint = Joint(JointType.SCREW, (0, 0, 0.5), (0, 0, 1), t_range=(0, 0.01),
+                      r_range=(0, 6.0))
+    obj = ArticulatedObject(category="WashingMachine", name="washer", parts=[
+        _part("body_0", "body", -1, (0.5, 0.5, 0.5), (0, 0, 0.25)),
+        _part(f"{label}_0", label, 0, (0.4, 0.4, 0.02), (0, 0, 0.51), joint),
+        _part("handle_0", "handle", 1, (0.02, 0.1, 0.02), (0.18, 0, 0.53)),
+        _part("dial_0", "dial", 0, (0.03, 0.03, 0.03), (0.23, 0.23, 0.475),
+              Joint(JointType.CONTINUOUS, (0.23, 0.23, 0.49), (0, 0, 1))),
+    ])
+    mans = {i: meshops.box(p.bbox_size, p.bbox_center) for i, p in enumerate(obj.parts)}
+    mans[0] = meshops.box((0.5, 0.5, 0.47), (0, 0, 0.235))     # the top 3 cm lower
+    before = [np.asarray(p.joint.origin, dtype=float).copy() for p in obj.parts]
+    assert settle_onto_parents(obj, mans) == [f"{label}_0"]
+    assert float(mans[1].min_gap(mans[0], 0.1)) <= SETTLE_GAP
+    drop = before[1][2] - obj.parts[1].joint.origin[2]
+    assert 0.028 < drop < 0.03 + 1e-9
+    assert obj.parts[2].joint.origin[2] == pytest.approx(before[2][2] - drop)   # the handle
+    assert np.allclose(obj.parts[3].joint.origin, before[3])                  # the dial
+    assert float((mans[1] ^ mans[3]).volume()) == 0.0
+    assert settle_onto_parents(obj, mans) == []
+
+
 def test_a_sliver_touching_a_part_at_one_vertex_is_not_written():
     """A 4-face tetrahedron sharing one vertex with a box is its own shell to a reader (the
     audit counts it as a floater); the stored mesh drops it and stays closed."""
@@ -868,3 +915,42 @@ def test_slab_and_block_handles_get_a_bars_grip_and_knobs_stay():
     assert knob[1:] == pytest.approx((0.04, 0.04)) and bar[1:] == pytest.approx((0.014, 0.25))
     assert all(np.allclose(c, p.bbox_center) for c, p in zip(centres, obj.parts))
     assert refine_layout(obj)["slimmed"] == 0          # refinement runs it: none left
+
+
+def test_a_carcass_on_box_pieces_of_its_back_wall_stands_on_its_footprint():
+    """The root's box pieces cover only its back wall (a thin-walled carcass through the
+    meshing grid): it gets a 5 mm slab over the rectangle its mesh stands on, and stands in
+    MuJoCo's sense on its whole bottom. A USB stick lying on the table gets none."""
+    import trimesh
+
+    from model.refine.meshes import FOOT, foot_collision
+    obj = ArticulatedObject(category="StorageFurniture", name="carcass", parts=[
+        _part("body_0", "body", -1, (0.5, 0.8, 0.9), (0, 0, 0.45))])
+    body = obj.parts[0]
+    body.mesh = trimesh.creation.box((0.5, 0.8, 0.9))
+    body.mesh.apply_translation((0, 0, 0.45))
+    back = trimesh.primitives.Box(extents=(0.02, 0.8, 0.9),
+                                  transform=trimesh.transformations.translation_matrix(
+                                      (-0.24, 0, 0.45)))
+    body.collision = [back]
+    assert foot_collision(obj) == ["body_0"]
+    foot = body.collision[-1]
+    assert len(body.collision) == 2
+    assert np.allclose(foot.bounds, [[-0.25, -0.4, 0.0], [0.25, 0.4, FOOT]])
+    obj.category = "USB"
+    body.collision = [back]
+    assert foot_collision(obj) == [] and body.collision == [back]
+
+
+def test_collision_boxes_are_cut_to_the_mesh_bounds():
+    """A box of the meshing grid's dual cells reaches half a cell past the mesh; cut to the
+    mesh's bounds, two fronts meshed 2 mm apart keep their gap in the simulator."""
+    import trimesh
+
+    from model.pipeline.part_finish import _clipped
+    box = trimesh.primitives.Box(extents=(0.1, 0.1, 0.1),
+                                 transform=trimesh.transformations.translation_matrix(
+                                     (0.0, 0.0, 0.05)))
+    cut = _clipped(box, np.array([-0.04, -0.06, 0.0]), np.array([0.06, 0.04, 0.097]))
+    assert np.allclose(cut.bounds, [[-0.04, -0.05, 0.0], [0.05, 0.04, 0.097]])
+    assert _clipped(box, np.array([0.2, 0, 0]), np.array([0.3, 0.1, 0.1])) is None

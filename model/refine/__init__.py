@@ -30,9 +30,11 @@ class RefineConfig:
     floaters: bool = True          # drop specks and enclosed voids of every part
     carve: bool = True             # parents give way where a moving child passes
     runners: bool = True           # a detached drawer gets a slab of its parent to slide on
+    settle: bool = True            # a lid or cap hovering over its parent's mesh comes down
     panels: bool = True            # controls with nothing behind them get a plate of it
     limits: bool = True            # a range ends where its sweep still collides
     vessels: bool = True           # a bottle stands on the hull of its body below the cap
+    foot: bool = True              # the root's box pieces get a slab over its footprint
     face_budget: int = 30000       # visual faces per object (0: keep every face)
     max_overlap: float = 0.01      # what the limit shrink tolerates (the audit's threshold)
 
@@ -51,6 +53,8 @@ def refine_meshes(obj: ArticulatedObject, config: Optional[RefineConfig] = None,
     # 15 % headroom: carving adds faces after simplifying
     mans, tol = _within_budget(obj, int(0.85 * cfg.face_budget), cfg.floaters, frozen, prepared)
     report: dict = {"simplify_tolerance": tol}
+    if cfg.settle and not frozen:
+        report["settled"] = M.settle_onto_parents(obj, mans)
     if cfg.panels and not frozen:
         report["control_panels"] = M.add_control_panels(obj, mans)
     if cfg.carve:
@@ -67,6 +71,8 @@ def refine_meshes(obj: ArticulatedObject, config: Optional[RefineConfig] = None,
         obj.parts[i].fit_bbox_to_mesh()
     if cfg.vessels:
         report["vessel_collision"] = M.vessel_collision(obj)
+    if cfg.foot:
+        report["foot_collision"] = M.foot_collision(obj)
     if cfg.limits and not frozen:
         report["limits_shrunk"] = M.shrink_limits(obj, mans, cfg.max_overlap)
     report["faces"] = int(sum(m.num_tri() for m in mans.values()))

@@ -322,12 +322,15 @@ def _spin(obj: ArticulatedObject, i: int, face: tuple[int, float]) -> None:
     p.joint.origin = p.bbox_center.copy()
 
 
+SCREW_LIFT = 0.008   # m: the most a screw cap seated on its parent rises as it turns open
+
+
 def _seat_cap(obj: ArticulatedObject, i: int) -> bool:
     """A cap spinning about its own axis (screw or continuous) that hovers off its parent's
     box is lowered onto it, a quarter of its height over the parent's top (the mesh step
     carves the neck under it), centred on the parent across the axis, and turns about its own
     centre line. A cap decoded 1.5 cm above a jar and 2 cm off its centre would float and
-    wobble. Returns whether it moved."""
+    wobble. A screw rises at most ``SCREW_LIFT``. Returns whether anything changed."""
     p = obj.parts[i]
     if p.label != "cap" or p.parent < 0 or p.joint.type not in (JointType.SCREW,
                                                                   JointType.CONTINUOUS):
@@ -338,18 +341,27 @@ def _seat_cap(obj: ArticulatedObject, i: int) -> bool:
     pc = (plo + phi) / 2
     up = 1.0 if p.bbox_center[k] >= pc[k] else -1.0
     inner, plane = (lo[k], phi[k]) if up > 0 else (hi[k], plo[k])
-    if (inner - plane) * up <= 0:
-        return False                      # on or over its parent already
-    shift = plane - inner - up * 0.25 * (hi[k] - lo[k])
     across = [d for d in range(3) if d != k]
-    centre = p.bbox_center.copy()
-    centre[k] += shift
-    centre[across] = pc[across]
-    _move_subtree(obj, i, centre - p.bbox_center)
     origin = np.asarray(p.joint.origin, dtype=np.float64).copy()
-    origin[across] = centre[across]              # it turns about its own centre line
+    moved = (inner - plane) * up > 0      # not on or over its parent yet
+    if moved:
+        centre = p.bbox_center.copy()
+        centre[k] += plane - inner - up * 0.25 * (hi[k] - lo[k])
+        centre[across] = pc[across]
+        _move_subtree(obj, i, centre - p.bbox_center)
+    # it turns about its own centre line, also where it sat on its parent already: about
+    # an axis 3 cm off its centre its sweep carves the neck away under it
+    recentred = np.abs(origin[across] - p.bbox_center[across]).max() > 1e-4
+    origin[across] = p.bbox_center[across]
     p.joint.origin = origin
-    return True
+    if p.joint.type == JointType.SCREW:
+        # the data's caps wrap the neck and lift less than their skirt (4-12 mm); a decoded
+        # cap sits on the neck, so all of its lift is a gap: at most SCREW_LIFT
+        t0, t1 = p.joint.t_range
+        if t1 - t0 > SCREW_LIFT:
+            p.joint.t_range = (t0, t0 + SCREW_LIFT)
+            recentred = True
+    return moved or recentred
 
 
 def _move_subtree(obj: ArticulatedObject, i: int, move) -> None:

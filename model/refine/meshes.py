@@ -223,6 +223,12 @@ def add_runners(obj: ArticulatedObject, mans: dict, max_gap: float = 0.005,
         if np.any(slab_hi - slab_lo <= 1e-4):
             continue
         runner = meshops.box(slab_hi - slab_lo, (slab_lo + slab_hi) / 2)
+        # less what other parts hold: a door 2 mm under the drawer kept 3 mm of it
+        others = [m for i, m in mans.items() if i not in (k, par)]
+        if others:
+            runner = mf.Manifold.batch_boolean([runner, *others], mf.OpType.Subtract)
+            if runner.is_empty():
+                continue
         joined = mf.Manifold.batch_boolean([mans[par], runner], mf.OpType.Add)
         pieces = len(mans[par].decompose())
         if len(joined.decompose()) > pieces:
@@ -241,6 +247,61 @@ def add_runners(obj: ArticulatedObject, mans: dict, max_gap: float = 0.005,
         mans[par] = joined
         added.append(p.name)
     return added
+
+
+SETTLED = ("lid", "cap")   # parts that rest on their parent
+SETTLE_GAP = 0.002         # m: a lid's or cap's mesh this close to its parent's touches it
+
+
+def settle_onto_parents(obj: ArticulatedObject, mans: dict, gap: float = SETTLE_GAP,
+                        search: float = 0.1, tries: int = 4) -> list[str]:
+    """A lid or cap whose mesh hovers over its parent's comes down onto it, with the parts
+    below it (boxes, joint origins, meshes and collision pieces): the layout puts it on its
+    parent's *box*, but the parent's mesh may end short of that box (a bottle's thin neck
+    dropped as a floater, a washer's top decoded as a sunken rim). A cap moves along its joint
+    axis, a lid along its thinnest side, towards the parent; each step is the current gap to
+    the parent and to every other part (less ``gap`` / 2), so nothing is pushed into
+    anything. Returns the parts that moved."""
+    from .layout import _move_subtree
+    moved = []
+    for k in obj.movable_parts():
+        p = obj.parts[k]
+        par = p.parent
+        if p.label not in SETTLED or par < 0 or k not in mans or par not in mans:
+            continue
+        if p.label == "cap":
+            d = np.asarray(p.joint.axis, dtype=np.float64)
+        else:
+            d = np.eye(3)[int(np.argmin(p.bbox_size))]
+        d = d / max(float(np.linalg.norm(d)), 1e-12)
+        d = d if float(np.dot(obj.parts[par].bbox_center - p.bbox_center, d)) >= 0 else -d
+        sub = [c for c in obj.subtree(k) if c in mans]
+        others = [m for i, m in mans.items() if i not in sub and i != par]
+        total = 0.0
+        for _ in range(tries):
+            moving = _union([mans[c] for c in sub])
+            g = float(moving.min_gap(mans[par], search))
+            if g <= gap or g >= search:
+                break
+            step = min([g] + [float(moving.min_gap(m, search)) for m in others]) - gap / 2
+            if step <= gap / 2:
+                break
+            for c in sub:
+                mans[c] = mans[c].translate(tuple(d * step))
+            total += step
+        if total > 0:
+            _move_subtree(obj, k, d * total)
+            for c in obj.subtree(k):
+                if obj.parts[c].collision:
+                    for piece in obj.parts[c].collision:
+                        piece.apply_translation(d * total)
+            moved.append(p.name)
+    return moved
+
+
+def _union(ms: list):
+    mf = meshops._mf()
+    return ms[0] if len(ms) == 1 else mf.Manifold.batch_boolean(ms, mf.OpType.Add)
 
 
 PANEL = 0.015      # m: depth of the plate put behind controls with nothing behind them
@@ -312,6 +373,40 @@ def round_collision(obj: ArticulatedObject, mans: dict, solid: float = 0.7) -> l
 
 
 VESSELS = ("Bottle",)
+
+
+FOOTED = ("StorageFurniture", "Oven", "WashingMachine", "Safe")   # stand on the floor
+FOOT = 0.005    # m: height of the slab a standing object's root collides with the floor on
+FOOT_BAND = 0.01   # m: the mesh's points this close to its lowest one are what it stands on
+
+
+def foot_collision(obj: ArticulatedObject) -> list[str]:
+    """The root part of a piece of furniture or an appliance (``FOOTED``), when it collides
+    as box pieces, also gets a slab ``FOOT`` high over
+    the rectangle of the points its mesh stands on (within ``FOOT_BAND`` of its lowest
+    one). The boxes come from the meshing grid and stop where its cells do: a carcass's
+    boxes stood on its 2 cm back wall alone, and it tipped over in MuJoCo with its front on
+    the floor. Only the floor meets the slab (the simulator keeps a parent and its children
+    apart), and it adds no support the mesh does not have. Returns the parts changed."""
+    import trimesh
+
+    changed = []
+    for part in obj.parts:
+        if part.parent >= 0 or not part.collision or part.mesh is None \
+                or not len(part.mesh.vertices) or obj.category not in FOOTED:
+            continue
+        v = np.asarray(part.mesh.vertices, dtype=np.float64)
+        z0 = float(v[:, 2].min())
+        low = v[v[:, 2] <= z0 + FOOT_BAND, :2]
+        lo, hi = low.min(0), low.max(0)
+        if np.any(hi - lo <= 1e-4):
+            continue
+        T = np.eye(4)
+        T[:3, 3] = [(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, z0 + FOOT / 2]
+        part.collision = list(part.collision) + [
+            trimesh.primitives.Box(extents=[hi[0] - lo[0], hi[1] - lo[1], FOOT], transform=T)]
+        changed.append(part.name)
+    return changed
 
 
 def vessel_collision(obj: ArticulatedObject, clearance: float = 0.002) -> list[str]:
