@@ -218,3 +218,22 @@ def test_physics_check_of_a_relative_path_with_relative_mesh_uris(tmp_path, monk
     rel = os.path.relpath(out.urdf_path, tmp_path)
     res = physics_check(rel)
     assert not res.error and res.ok, res.to_dict()
+
+
+def test_the_physics_floor_goes_under_a_slanted_mesh_pieces_lowest_vertex():
+    """A mesh geom's box in its principal frame reaches below the mesh when the piece is
+    skewed; the floor goes under the lowest vertex, so the object does not fall onto it."""
+    import mujoco
+
+    from model.export.physics import _lowest_point
+    # a slab 40 x 20 x 10 cm sheared along x as it rises (its principal axes then run
+    # across its faces; their box reached 4 cm below it), its lowest vertex at z = 0.1
+    V = np.array([[x + 2 * z, y, z + 0.1] for x in (-0.2, 0.2) for y in (-0.1, 0.1)
+                  for z in (0, 0.1)])
+    verts = " ".join(f"{v:.6f}" for v in V.ravel())
+    xml = (f'<mujoco><asset><mesh name="slab" vertex="{verts}"/></asset><worldbody>'
+           f'<body><freejoint/><geom type="mesh" mesh="slab"/></body></worldbody></mujoco>')
+    m = mujoco.MjModel.from_xml_string(xml)
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    assert _lowest_point(m, d, skip=-1) == pytest.approx(0.1, abs=1e-6)

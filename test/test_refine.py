@@ -954,3 +954,17 @@ def test_collision_boxes_are_cut_to_the_mesh_bounds():
     cut = _clipped(box, np.array([-0.04, -0.06, 0.0]), np.array([0.06, 0.04, 0.097]))
     assert np.allclose(cut.bounds, [[-0.04, -0.05, 0.0], [0.05, 0.04, 0.097]])
     assert _clipped(box, np.array([0.2, 0, 0]), np.array([0.3, 0.1, 0.1])) is None
+
+
+def test_a_turning_handles_range_starts_where_it_was_meshed():
+    """A safe's handle decoded turning over (-0.23, 0) rad stood turned into the keypad
+    beside it at its lower limit (the rest state of the export): its range starts at 0."""
+    safe = ArticulatedObject(category="Safe", name="safe", parts=[
+        _part("body_0", "body", -1, (0.4, 0.4, 0.4), (0, 0, 0.2)),
+        _part("door_0", "door", 0, (0.03, 0.36, 0.36), (0.19, 0, 0.2),
+              Joint(JointType.REVOLUTE, (0.2, -0.18, 0.2), (0, 0, 1), r_range=(0, 1.5))),
+        _part("handle_0", "handle", 1, (0.02, 0.03, 0.1), (0.215, 0.1, 0.2),
+              Joint(JointType.REVOLUTE, (0.215, 0.1, 0.2), (1, 0, 0), r_range=(-0.23, 0.0))),
+    ])
+    refine_layout(safe)
+    assert safe.parts[2].joint.r_range == pytest.approx((0.0, 0.23))

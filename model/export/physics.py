@@ -143,6 +143,9 @@ def _spec(urdf: Path, tmpdir: str, free: bool, cfg: PhysicsConfig):
     return spec, [j.name for j in joints]
 
 
+MESH_GEOM = 7      # mujoco.mjtGeom.mjGEOM_MESH
+
+
 def _lowest_point(m, d, skip: int) -> float:
     """Height of the lowest point of the collision geometry in ``d``'s pose, geom ``skip``
     (the floor) left out."""
@@ -151,6 +154,13 @@ def _lowest_point(m, d, skip: int) -> float:
         if g == skip or (m.geom_contype[g] == 0 and m.geom_conaffinity[g] == 0):
             continue
         R = d.geom_xmat[g].reshape(3, 3)
+        if m.geom_type[g] == MESH_GEOM and m.geom_dataid[g] >= 0:
+            # a mesh's own vertices: the corners of its box in its (principal) frame reach
+            # below it, 13 cm under a slanted piece of a carcass, which then fell that far
+            k = m.geom_dataid[g]
+            V = m.mesh_vert[m.mesh_vertadr[k]:m.mesh_vertadr[k] + m.mesh_vertnum[k]]
+            low = min(low, float(d.geom_xpos[g, 2] + (V @ R[2]).min()))
+            continue
         c, half = m.geom_aabb[g, :3], m.geom_aabb[g, 3:]
         low = min(low, float(d.geom_xpos[g, 2] + R[2] @ c - np.abs(R[2]) @ half))
     return 0.0 if not np.isfinite(low) else low

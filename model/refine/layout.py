@@ -320,6 +320,11 @@ def _spin(obj: ArticulatedObject, i: int, face: tuple[int, float]) -> None:
     sign = _principal(p.joint.axis)[1]
     p.joint.axis = np.eye(3)[k] * sign
     p.joint.origin = p.bbox_center.copy()
+    if p.joint.type == JointType.REVOLUTE:
+        # its range starts at the pose it was meshed in, as a door's does: a safe's handle
+        # decoded with (-0.23, 0) rad stood turned into the keypad beside it at its lower limit
+        lo_r, hi_r = p.joint.r_range
+        p.joint.r_range = (0.0, float(max(abs(lo_r), abs(hi_r))))
 
 
 SCREW_LIFT = 0.008   # m: the most a screw cap seated on its parent rises as it turns open

@@ -381,20 +381,27 @@ FOOT_BAND = 0.01   # m: the mesh's points this close to its lowest one are what 
 
 
 def foot_collision(obj: ArticulatedObject) -> list[str]:
-    """The root part of a piece of furniture or an appliance (``FOOTED``), when it collides
-    as box pieces, also gets a slab ``FOOT`` high over
-    the rectangle of the points its mesh stands on (within ``FOOT_BAND`` of its lowest
-    one). The boxes come from the meshing grid and stop where its cells do: a carcass's
+    """The root part of a piece of furniture or an appliance (``FOOTED``) also collides with
+    a slab ``FOOT`` high over the rectangle of the points its mesh stands on (within
+    ``FOOT_BAND`` of its lowest one). The boxes come from the meshing grid and stop where its cells do: a carcass's
     boxes stood on its 2 cm back wall alone, and it tipped over in MuJoCo with its front on
     the floor. Only the floor meets the slab (the simulator keeps a parent and its children
-    apart), and it adds no support the mesh does not have. Returns the parts changed."""
+    apart), and it adds no support the mesh does not have. A root without box pieces (they
+    covered too little of it: ``model.pipeline.part_finish.BOX_COVERAGE``) gets the
+    exporter's ``auto`` pieces first, which stood one carcass 13 cm above its floor.
+    Returns the parts changed."""
     import trimesh
+
+    from model.export.collision import CollisionConfig, collision_pieces
 
     changed = []
     for part in obj.parts:
-        if part.parent >= 0 or not part.collision or part.mesh is None \
-                or not len(part.mesh.vertices) or obj.category not in FOOTED:
+        if part.parent >= 0 or part.mesh is None or not len(part.mesh.vertices) \
+                or obj.category not in FOOTED:
             continue
+        if not part.collision:
+            others = [q.mesh for q in obj.parts if q is not part and q.mesh is not None]
+            part.collision = collision_pieces(part.mesh, CollisionConfig(), others)
         v = np.asarray(part.mesh.vertices, dtype=np.float64)
         z0 = float(v[:, 2].min())
         low = v[v[:, 2] <= z0 + FOOT_BAND, :2]
