@@ -89,8 +89,9 @@ stage_text_eval() {   # validation only: the test split is scored once, for the 
       artformer eval --freeform-only --seeds 3 --freeform-file "model/metrics/prompts_$set.txt" \
         --json "$RUNS/${set}_$ck.json" "${opt[@]}"
     done
+    python scripts/bare_names.py --json "$RUNS/bare_$ck.json" "${opt[@]}"
   done
-  record "$RUNS" "$(date -u +%FT%TZ) text-eval (val alignment and layout, audit, free-form and dev prompts; candidate and shipped): $(( $(date -u +%s) - t0 )) s wall"
+  record "$RUNS" "$(date -u +%FT%TZ) text-eval (val alignment and layout, audit, free-form and dev prompts, bare names; candidate and shipped): $(( $(date -u +%s) - t0 )) s wall"
   # the ship rule on those files (scripts/compare_candidate.py): a table and a verdict
   python scripts/compare_candidate.py "$RUNS" --markdown "$RUNS/compare_val.md"
 }

@@ -30,6 +30,7 @@ def _write(runs: Path, who: str, align: float, raw: float, refined: float, colla
     for name in ("freeform", "dev"):
         (runs / f"{name}_{who}.json").write_text(json.dumps(
             {"breakdown": {"all": {"alignment": 0.95, "spatial": 0.9}}}))
+    (runs / f"bare_{who}.json").write_text(json.dumps({"with_moving_part": 1.0}))
 
 
 def test_the_ship_rule_wants_better_alignment_and_raw_audit_and_no_worse_refined(tmp_path):
@@ -44,6 +45,12 @@ def test_the_ship_rule_wants_better_alignment_and_raw_audit_and_no_worse_refined
     ship, why = mod.verdict(c, s)
     assert not ship and why == ["worse: audit refined: sim-ready",
                                 "worse: layout refined: collapsed sibling pairs (val)"]
+    c["audit refined: sim-ready"] = 0.97
+    c["layout refined: collapsed sibling pairs (val)"] = 5
+    c["audit refined: worst part <= 2 components"] = 90 / 96     # five objects more shredded
+    c["bare names: objects with a moving part"] = 0.5            # "a cabinet": an empty box
+    assert mod.verdict(c, s)[1] == ["worse: audit refined: worst part <= 2 components",
+                                    "worse: bare names: objects with a moving part"]
     c["template alignment, project metric (val)"] = None     # a missing file never ships
     assert "not better: template alignment, project metric (val)" in mod.verdict(c, s)[1]
     assert mod.main([str(tmp_path)]) == 0

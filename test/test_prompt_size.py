@@ -7,7 +7,7 @@ from model.core import ArticulatedObject, Joint, JointType, Part
 from model.data.expected_structure import ExpectedStructure
 from model.data.prompt_parse import parse_prompt
 from model.data.prompt_size import (read_size, with_usual_keypad, with_usual_layout,
-                                    with_usual_size)
+                                    with_usual_parts, with_usual_size)
 from model.metrics.alignment import GeneratedStructure, check_alignment
 from model.refine.size import scale_to_size, size_factors
 
@@ -64,6 +64,25 @@ def test_a_safes_uncounted_keypad_gets_the_usual_three_by_three_keys():
                  "a microwave with a keypad", "a safe with a door and a dial"):
         e = parse_prompt(text)
         assert with_usual_keypad(text, e) == e, text
+
+
+@pytest.mark.parametrize("text,parts", [
+    ("a cabinet", {"door": 2}), ("A dresser.", {"drawer": 4}), ("a nightstand", {"drawer": 1}),
+    ("a wardrobe", {"door": 2}), ("an oven", {"door": 1}), ("a washer", {"door": 1}),
+    ("a washing machine", {"door": 1}), ("a jar", {"cap": 1}), ("a thumb drive", {"cap": 1})])
+def test_a_bare_name_gets_its_usual_parts(text, parts):
+    said = parse_prompt(text)
+    assert not said.counts and not said.min_counts                 # a category, no part
+    assert with_usual_parts(text, said).counts == parts
+    assert not said.counts                                           # not changed in place
+
+
+@pytest.mark.parametrize("text", ["a cabinet with drawers", "a dresser with no drawers",
+                                  "a wardrobe with two doors", "a cabinet whose door slides",
+                                  "something with a lid", "a drawer"])
+def test_a_prompt_naming_any_part_keeps_its_own_structure(text):
+    said = parse_prompt(text)
+    assert with_usual_parts(text, said) == said
 
 
 def test_size_round_trips_through_the_annotation_line():

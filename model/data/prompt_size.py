@@ -135,3 +135,40 @@ def with_usual_keypad(text: str, expected):
                                          "button": max(expected.min_counts["button"],
                                                        rows * cols)},
                    spatial={**expected.spatial, "button": facts})
+
+
+# The usual moving parts of a bare name ("a dresser", "an oven": a category and no part): a
+# text model trained on descriptions that always list the parts decoded "a cabinet" as an
+# empty carcass. First match wins; the category's default last. Counts are the data's
+# typical ones for that kind of object (model/data/synth).
+USUAL_PARTS = {
+    "StorageFurniture": [(("dresser", "chest of drawers", "chest", "tallboy", "filing cabinet",
+                           "drawer unit"), {"drawer": 4}),
+                         (("nightstand", "night stand", "bedside table", "bedside cabinet"),
+                          {"drawer": 1}),
+                         (("wardrobe", "closet", "armoire", "cupboard", "locker"),
+                          {"door": 2}),
+                         ((), {"door": 2})],
+    "Safe": [((), {"door": 1})],
+    "Oven": [((), {"door": 1})],
+    "WashingMachine": [((), {"door": 1})],      # a top loader's lid: the reader's own
+    "Bottle": [((), {"cap": 1})],
+    "USB": [((), {"cap": 1})],
+}
+
+
+def with_usual_parts(text: str, expected):
+    """``expected`` (a parsed prompt, ``ExpectedStructure``) with a bare name's usual parts
+    (``USUAL_PARTS``) as its counts when the text names a category and no part at all (no
+    count, bound, zero, joint or spatial fact): what generation holds ("a dresser" gets
+    four drawers, "a cabinet" two doors; the network lays them out, and the seed varies the
+    layout). Not a stated fact: the alignment metric checks the prompt's own structure."""
+    from dataclasses import replace
+
+    if not expected.category or expected.counts or expected.min_counts \
+            or expected.joint_types or expected.spatial:
+        return expected
+    for names, parts in USUAL_PARTS.get(expected.category, []):
+        if not names or _named(text, names):
+            return replace(expected, counts=dict(parts))
+    return expected
