@@ -135,8 +135,11 @@ def test_shipped_model_builds_the_size_the_prompt_states(shipped):
 
 
 def test_shipped_model_without_stated_counts_or_when_off_decodes_freely(shipped):
+    trees, *_ = shipped.decode_trees("a cabinet with drawers", seed=0)   # a bound, no count
+    assert trees[0].structure is None and trees[0].category == "StorageFurniture"
+    # a bare name is held to its usual parts (model.data.prompt_size.with_usual_parts)
     trees, *_ = shipped.decode_trees("a bottle", seed=0)
-    assert trees[0].structure is None and trees[0].category == "Bottle"
+    assert trees[0].structure["cap"] == {"count": 1} and trees[0].labels.count("cap") == 1
     # a count beyond what the model was trained on: held at its maximum, no error
     from model.articulation.structure_control import STRUCTURE_GRAMMAR
     most = min(STRUCTURE_GRAMMAR["StorageFurniture"]["drawer"][2], shipped.config.max_children)

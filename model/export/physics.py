@@ -60,6 +60,10 @@ class PhysicsConfig:
     max_walk: float = 0.03        # free base: largest horizontal drift of the root (m)
     hold: float = 0.5             # seconds to settle (on the floor) before the sweep
     min_inertia: float = 0.01     # armature floor (kg or kg m^2) of a driven joint
+    # where the floor goes under a mesh piece: "vertices" (its lowest vertex) or "boxes" (the
+    # corner of its box in MuJoCo's principal frame: the rule the procedural generator's
+    # gate of synth-7 was made with, which it keeps so its data rebuilds the same)
+    floor_under: str = "vertices"
 
 
 @dataclass
@@ -146,15 +150,15 @@ def _spec(urdf: Path, tmpdir: str, free: bool, cfg: PhysicsConfig):
 MESH_GEOM = 7      # mujoco.mjtGeom.mjGEOM_MESH
 
 
-def _lowest_point(m, d, skip: int) -> float:
+def _lowest_point(m, d, skip: int, vertices: bool = True) -> float:
     """Height of the lowest point of the collision geometry in ``d``'s pose, geom ``skip``
-    (the floor) left out."""
+    (the floor) left out; with ``vertices`` False a mesh counts as its box in its frame."""
     low = np.inf
     for g in range(m.ngeom):
         if g == skip or (m.geom_contype[g] == 0 and m.geom_conaffinity[g] == 0):
             continue
         R = d.geom_xmat[g].reshape(3, 3)
-        if m.geom_type[g] == MESH_GEOM and m.geom_dataid[g] >= 0:
+        if vertices and m.geom_type[g] == MESH_GEOM and m.geom_dataid[g] >= 0:
             # a mesh's own vertices: the corners of its box in its (principal) frame reach
             # below it, 13 cm under a slanted piece of a carcass, which then fell that far
             k = m.geom_dataid[g]
@@ -194,7 +198,8 @@ def _run(urdf: Path, free: bool, cfg: PhysicsConfig, tmpdir: str) -> tuple[Physi
     # The floor goes into the spec and the model is compiled again: a world geom's pose is
     # fixed at compile time (writing m.geom_pos afterwards leaves it at z = 0, through the
     # object of any URDF whose root frame is not at its bottom).
-    low = _lowest_point(m, d, m.geom(FLOOR).id) - (0.0 if free else FIXED_CLEARANCE)
+    low = _lowest_point(m, d, m.geom(FLOOR).id, cfg.floor_under == "vertices") \
+        - (0.0 if free else FIXED_CLEARANCE)
     spec.geom(FLOOR).pos = [0.0, 0.0, low]
     m = spec.compile()
     d = mujoco.MjData(m)

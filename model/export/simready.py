@@ -54,6 +54,7 @@ class AuditConfig:
     floater_area: float = 0.01     # a component under this share of its part's area floats
     face_budget: int = 30000       # faces per object (0: not checked)
     physics: bool = True           # run the MuJoCo check (needs a URDF; objects get exported)
+    physics_floor: str = "vertices"  # PhysicsConfig.floor_under ("boxes": synth-7's gate)
 
 
 @dataclass
@@ -102,7 +103,7 @@ def audit_object(obj: ArticulatedObject, *, urdf: Optional[str] = None,
     try:
         _geometry_checks(obj, rep, cfg)
         if cfg.physics:
-            _physics(obj, urdf, rep)
+            _physics(obj, urdf, rep, cfg.physics_floor)
     except Exception as e:  # an unreadable object fails the audit with the reason
         rep.error = f"{type(e).__name__}: {e}"
         log.debug("audit of %s failed", obj.name, exc_info=True)
@@ -151,16 +152,18 @@ def _geometry_checks(obj: ArticulatedObject, rep: ObjectAudit, cfg: AuditConfig)
         rep.failures.append(f"{rep.faces} faces (budget {cfg.face_budget})")
 
 
-def _physics(obj: ArticulatedObject, urdf: Optional[str], rep: ObjectAudit) -> None:
-    from .physics import physics_check
+def _physics(obj: ArticulatedObject, urdf: Optional[str], rep: ObjectAudit,
+             floor: str = "vertices") -> None:
+    from .physics import PhysicsConfig, physics_check
 
+    pc = PhysicsConfig(floor_under=floor)
     if urdf:
-        res = physics_check(urdf)
+        res = physics_check(urdf, pc)
     else:
         from .urdf import export_object
         with tempfile.TemporaryDirectory(prefix="artformer_audit_") as tmp:
             out = export_object(obj, Path(tmp) / "obj", preview=False, mesh_uri="relative")
-            res = physics_check(out.urdf_path)
+            res = physics_check(out.urdf_path, pc)
     rep.physics = res.to_dict()
     rep.failures.extend(f"physics: {f}" for f in res.failures)
 

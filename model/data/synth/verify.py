@@ -85,7 +85,8 @@ def check_object(obj: ArticulatedObject, states: int = 10, *, attach_distance: f
 def _audit_failures(obj: ArticulatedObject, physics: bool) -> list[str]:
     """What the sim-ready audit finds wrong with a drawn object."""
     from model.export.simready import AuditConfig, audit_object
-    rep = audit_object(obj, config=AuditConfig(physics=physics))
+    # the floor rule synth-7 was made with, so its data versions rebuild the same
+    rep = audit_object(obj, config=AuditConfig(physics=physics, physics_floor="boxes"))
     return ([rep.error] if rep.error else []) + rep.failures
 
 
