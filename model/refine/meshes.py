@@ -383,12 +383,12 @@ FOOT_BAND = 0.01   # m: the mesh's points this close to its lowest one are what 
 def foot_collision(obj: ArticulatedObject) -> list[str]:
     """The root part of a piece of furniture or an appliance (``FOOTED``) also collides with
     a slab ``FOOT`` high over the rectangle of the points its mesh stands on (within
-    ``FOOT_BAND`` of its lowest one). The boxes come from the meshing grid and stop where its cells do: a carcass's
-    boxes stood on its 2 cm back wall alone, and it tipped over in MuJoCo with its front on
-    the floor. Only the floor meets the slab (the simulator keeps a parent and its children
-    apart), and it adds no support the mesh does not have. A root without box pieces (they
-    covered too little of it: ``model.pipeline.part_finish.BOX_COVERAGE``) gets the
-    exporter's ``auto`` pieces first, which stood one carcass 13 cm above its floor.
+    ``FOOT_BAND`` of its lowest one). The boxes come from the meshing grid and stop where
+    its cells do: a carcass's boxes stood on its 2 cm back wall alone, and it tipped over in
+    MuJoCo with its front on the floor. Only the floor meets the slab (the simulator keeps
+    a parent and its children apart), and it adds no support the mesh does not have. A root
+    without box pieces (they covered too little of it:
+    ``model.pipeline.part_finish.BOX_COVERAGE``) gets the exporter's ``auto`` pieces first.
     Returns the parts changed."""
     import trimesh
 
