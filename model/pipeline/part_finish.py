@@ -95,13 +95,7 @@ def finish_parts(tasks: list) -> list:
     return [finish_part(t) for t in tasks]
 
 
-# share of a part's solid its collision boxes must cover, else the exporter decomposes the
-# refined mesh (model.export.collision, "auto"): 32 boxes cover 16-46 % of a thin-walled
-# carcass (its back wall, say), and a cabinet standing on that tips over in MuJoCo
-BOX_COVERAGE = 0.5
-
-
-def collision_boxes(r, fitted, max_boxes: int = 32, min_coverage: float = BOX_COVERAGE,
+def collision_boxes(r, fitted, max_boxes: int = 32, min_coverage: float = 0.0,
                     layer_fill: float = 0.8):
     """Collision boxes of a generated part from its SDF cell occupancy (``r.inside`` over the
     meshing cube), mapped by the same per-axis scale and shift that fitted the mesh to its

@@ -386,10 +386,10 @@ def foot_collision(obj: ArticulatedObject) -> list[str]:
     ``FOOT_BAND`` of its lowest one). The boxes come from the meshing grid and stop where
     its cells do: a carcass's boxes stood on its 2 cm back wall alone, and it tipped over in
     MuJoCo with its front on the floor. Only the floor meets the slab (the simulator keeps
-    a parent and its children apart), and it adds no support the mesh does not have. A root
-    without box pieces (they covered too little of it:
-    ``model.pipeline.part_finish.BOX_COVERAGE``) gets the exporter's ``auto`` pieces first.
-    Returns the parts changed."""
+    a parent and its children apart), and it adds no support the mesh does not have. (32
+    boxes cover 16-46 % of such a carcass; the exporter's V-HACD pieces instead cost 1 s and
+    225 MB more on a 10-part object.) A root without box pieces gets the exporter's ``auto``
+    pieces first. Returns the parts changed."""
     import trimesh
 
     from model.export.collision import CollisionConfig, collision_pieces
