@@ -314,7 +314,7 @@ class Generator:
                 cs = torch.as_tensor(tree.cs[new], dtype=torch.float32)           # (K, 64)
                 with torch_threads(cfg.token_threads):
                     z = shape.sample_from_logits(P, cs, steps=cfg.steps, tau=cfg.temperature,
-                                                      guidance=cfg.guidance, generator=gen)
+                                                 guidance=cfg.guidance, generator=gen)
             if cfg.geometry == "retrieve":
                 z, _ = shape.retrieve(z, texts)
         timings["diffusion"] = time.perf_counter() - t
