@@ -196,8 +196,14 @@ def _hinge(obj: ArticulatedObject, i: int, face: tuple[int, float]) -> None:
     free[u] = hi[u] if side == lo[u] else lo[u]
     if np.cross(axis, free - origin)[k] * s < 0:
         axis = -axis
-    lo_r, hi_r = j.r_range
     j.origin, j.axis = origin, axis
+    _range_from_rest(j)
+
+
+def _range_from_rest(j) -> None:
+    """A revolute joint's range starts at the pose its part was meshed in (0) and spans the
+    larger of its decoded limits."""
+    lo_r, hi_r = j.r_range
     j.r_range = (0.0, float(max(abs(lo_r), abs(hi_r))))
 
 
@@ -321,10 +327,9 @@ def _spin(obj: ArticulatedObject, i: int, face: tuple[int, float]) -> None:
     p.joint.axis = np.eye(3)[k] * sign
     p.joint.origin = p.bbox_center.copy()
     if p.joint.type == JointType.REVOLUTE:
-        # its range starts at the pose it was meshed in, as a door's does: a safe's handle
-        # decoded with (-0.23, 0) rad stood turned into the keypad beside it at its lower limit
-        lo_r, hi_r = p.joint.r_range
-        p.joint.r_range = (0.0, float(max(abs(lo_r), abs(hi_r))))
+        # as a door's: a safe's handle decoded with (-0.23, 0) rad stood turned into the
+        # keypad beside it at its lower limit
+        _range_from_rest(p.joint)
 
 
 SCREW_LIFT = 0.008   # m: the most a screw cap seated on its parent rises as it turns open

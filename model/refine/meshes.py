@@ -195,6 +195,13 @@ def _collides(obj, mans, vol, pairs, T, max_overlap) -> bool:
     return any(r > max_overlap for _, _, r in pair_overlaps(obj, mans, vol, pairs, T))
 
 
+def _meshed_on_parent(obj: ArticulatedObject, mans: dict, labels) -> list[int]:
+    """The moving parts with a label in ``labels`` that have a mesh in ``mans``, as their
+    parent has."""
+    return [k for k in obj.movable_parts() if obj.parts[k].label in labels
+            and k in mans and obj.parts[k].parent in mans]
+
+
 def add_runners(obj: ArticulatedObject, mans: dict, max_gap: float = 0.005,
                 thickness: float = 0.005) -> list[str]:
     """A drawer or tray that does not touch its parent at rest or fully open gets a runner:
@@ -203,11 +210,9 @@ def add_runners(obj: ArticulatedObject, mans: dict, max_gap: float = 0.005,
     from .layout import SLIDERS
     mf = meshops._mf()
     added = []
-    for k in obj.movable_parts():
+    for k in _meshed_on_parent(obj, mans, SLIDERS):
         p = obj.parts[k]
         par = p.parent
-        if p.label not in SLIDERS or par < 0 or k not in mans or par not in mans:
-            continue
         T = obj.link_transforms(ratio={p.name: 1.0})[p.name]
         opened = mans[k].transform(meshops.affine34(T))
         if max(float(mans[k].min_gap(mans[par], 2 * max_gap)),
@@ -264,11 +269,9 @@ def settle_onto_parents(obj: ArticulatedObject, mans: dict, gap: float = SETTLE_
     anything. Returns the parts that moved."""
     from .layout import _move_subtree
     moved = []
-    for k in obj.movable_parts():
+    for k in _meshed_on_parent(obj, mans, SETTLED):
         p = obj.parts[k]
         par = p.parent
-        if p.label not in SETTLED or par < 0 or k not in mans or par not in mans:
-            continue
         if p.label == "cap":
             d = np.asarray(p.joint.axis, dtype=np.float64)
         else:
@@ -279,7 +282,7 @@ def settle_onto_parents(obj: ArticulatedObject, mans: dict, gap: float = SETTLE_
         others = [m for i, m in mans.items() if i not in sub and i != par]
         total = 0.0
         for _ in range(tries):
-            moving = _union([mans[c] for c in sub])
+            moving = meshops.union_manifolds([mans[c] for c in sub])
             g = float(moving.min_gap(mans[par], search))
             if g <= gap or g >= search:
                 break
@@ -297,11 +300,6 @@ def settle_onto_parents(obj: ArticulatedObject, mans: dict, gap: float = SETTLE_
                         piece.apply_translation(d * total)
             moved.append(p.name)
     return moved
-
-
-def _union(ms: list):
-    mf = meshops._mf()
-    return ms[0] if len(ms) == 1 else mf.Manifold.batch_boolean(ms, mf.OpType.Add)
 
 
 PANEL = 0.015      # m: depth of the plate put behind controls with nothing behind them
