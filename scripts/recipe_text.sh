@@ -8,7 +8,8 @@
 #   STAGE=text bash scripts/recipe_text.sh      # one stage: text | text-eval | render | image | image-eval
 #
 # Settings (environment variables, defaults below): DATA, PRIOR, SDF, PRESET, TEXT_STEPS,
-# IMAGE_STEPS, TRUNK, FRAME, MODES, SEED, THREADS, CHUNK_MIN, RUNS. FRAME and MODES are the token
+# IMAGE_STEPS, TRUNK, FRAME, MODES, SEED, THREADS, CHUNK_MIN, RUNS, INIT, LR. INIT starts the
+# text model from a finished checkpoint (a fine-tune, e.g. onto another shape prior's targets). FRAME and MODES are the token
 # frame and articulation modes (docs/results/layout_training.md). Each run folder gets
 # RECIPE.md with the command lines, seed, data version, device and wall time of every chunk.
 # Nothing is copied into model/weights: the fp16 files land in RUNS, to be shipped only when
@@ -35,6 +36,8 @@ CHUNK_MIN=${CHUNK_MIN:-120}     # training minutes per invocation; + PREP_MIN of
 PREP_MIN=${PREP_MIN:-30}        # a first chunk encodes every description and target (~25 min)
 RUNS=${RUNS:-runs/text_${NAME}}
 STAGE=${STAGE:-all}
+INIT=${INIT:-}                  # a finished text checkpoint to fine-tune from (empty: scratch)
+LR=${LR:-5e-4}
 VERSION=${VERSION:-}
 TEXT_RUN=$RUNS/transformer
 IMAGE_RUN=$RUNS/image
@@ -51,8 +54,9 @@ source scripts/recipe_lib.sh
 
 # --minutes 0: no wall-clock budget (the small preset's 24 minutes would end the run and
 # anneal its learning rate by time); the schedule follows the steps alone
-common=(--prior "$PRIOR" --sdf "$SDF" --lr 5e-4 --own-inputs 0.5 --token-frame "$FRAME"
+common=(--prior "$PRIOR" --sdf "$SDF" --lr "$LR" --own-inputs 0.5 --token-frame "$FRAME"
         --art-modes "$MODES" --minutes 0)
+if [ -n "$INIT" ]; then common+=(--init "$INIT"); fi
 
 stage_text() {
   train_chunks transformer "$TEXT_RUN" "$TEXT_STEPS" "${common[@]}"

@@ -167,6 +167,52 @@ def test_simplification_steps_made_ahead_stop_where_the_budget_loop_stops(budget
     assert rep["faces"] <= max(budget, 2000)
 
 
+def test_the_budget_holds_after_carving_adds_faces():
+    """The first simplification leaves 15 % headroom for carving; a screw cap's sweep cut
+    into a ribbed bottle body adds more than that, so refinement simplifies once more with
+    the coarser steps, and does nothing when the object is within the budget."""
+    from model.core import meshops
+    from model.refine import _back_within_budget
+
+    ball = trimesh.creation.icosphere(5, radius=0.3)
+    mans = {0: meshops.to_manifold(ball)}
+    out, used = _back_within_budget(mans, 5000, 0.0, floaters=True)
+    assert out[0].num_tri() <= 5000 < len(ball.faces) and used > 0
+    assert out[0].volume() == pytest.approx(mans[0].volume(), rel=0.02)
+    same, used = _back_within_budget(mans, 30000, 0.0, floaters=True)
+    assert same is mans and used == 0.0
+    # no coarser step left: kept as it is (the audit reports the overshoot)
+    _, used = _back_within_budget(mans, 5000, 0.008, floaters=True)
+    assert used == 0.0
+
+
+def test_limits_shrink_where_two_joints_meet_only_together():
+    """Two slides that move towards each other: each alone is clear of the other at rest,
+    together they meet past 80 % of their ranges; both ranges end at the last free state
+    of the sweep of all joints together (the audit's "all joints at r")."""
+    from model.core import meshops
+    from model.refine.meshes import shrink_limits
+
+    def slide(name, x, direction):
+        return _part(name, "drawer", 0, (0.1, 0.1, 0.1), (x, 0, 0.16),
+                     Joint(JointType.PRISMATIC, (x, 0, 0.16), (direction, 0, 0),
+                           t_range=(0, 0.25)))
+    obj = _meshed(ArticulatedObject(category="StorageFurniture", name="meet", parts=[
+        _part("body_0", "body", -1, (0.8, 0.3, 0.1), (0, 0, 0.05)),
+        slide("drawer_0", -0.25, 1.0), slide("drawer_1", 0.25, -1.0)]))
+    mans = {i: meshops.to_manifold(p.mesh) for i, p in enumerate(obj.parts)}
+    before = audit_object(obj.copy(), config=GEOMETRY_ONLY)
+    assert before.max_overlap > 0.1 and "all joints at 1.00" in before.worst_pair
+    assert shrink_limits(obj, mans) == 2
+    last = np.linspace(0, 1, 10)[7]                  # 0.78: the last free state
+    for p in obj.parts[1:]:
+        assert p.joint.t_range == pytest.approx((0.0, 0.25 * last))
+    assert audit_object(obj, config=GEOMETRY_ONLY).max_overlap <= 0.01
+    one = _meshed(ArticulatedObject(category="StorageFurniture", name="one", parts=[
+        _part("body_0", "body", -1, (0.8, 0.3, 0.1), (0, 0, 0.05)), slide("drawer_0", -0.25, 1.0)]))
+    assert shrink_limits(one, {i: meshops.to_manifold(p.mesh) for i, p in enumerate(one.parts)}) == 0
+
+
 def _small_fronts() -> ArticulatedObject:
     """A decoded-like cabinet front: a door on the left and three small drawers (two stacked,
     one beside them) in the middle of a 0.9 x 1.0 m face, gaps everywhere."""

@@ -65,6 +65,9 @@ def refine_meshes(obj: ArticulatedObject, config: Optional[RefineConfig] = None,
         report["carved"] = sorted(obj.parts[i].name for i in carved)
     if cfg.runners:
         report["runners"] = M.add_runners(obj, mans)
+    mans, more = _back_within_budget(mans, cfg.face_budget, tol, cfg.floaters)
+    if more:
+        report["simplify_tolerance"] = more
     M.store(obj, mans)
     report["hull_collision"] = M.round_collision(obj, mans)
     for i in mans:               # the boxes describe the meshes that get exported
@@ -132,6 +135,21 @@ def _within_budget(obj: ArticulatedObject, budget: int, floaters: bool, frozen: 
     if floaters and tol:
         mans = {k: M.drop_floaters(m) for k, m in mans.items()}   # simplifying can split
     return mans, tol
+
+
+def _back_within_budget(mans: dict, budget: int, tol: float, floaters: bool) -> tuple[dict, float]:
+    """``mans`` within ``budget`` faces again after carving and runners added faces beyond the
+    15 % headroom (a screw cap's sweep cut into a ribbed bottle body adds ~5k): the
+    simplification steps coarser than ``tol``, the one already used. -> the meshes and the
+    last tolerance used (0: nothing to do)."""
+    from . import meshes as M
+    if budget <= 0 or sum(m.num_tri() for m in mans.values()) <= budget:
+        return mans, 0.0
+    steps = tuple(t for t in M.SIMPLIFY_STEPS if t > tol)
+    out, used = M.simplify_to_budget(mans, budget, steps, fine=() if tol else M.FINE_STEPS)
+    if floaters and used:
+        out = {k: M.drop_floaters(m) for k, m in out.items()}   # simplifying can split
+    return out, used
 
 
 __all__ = ["RefineConfig", "simplify_meshes", "LayoutConfig", "arrange_stated",

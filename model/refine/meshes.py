@@ -154,14 +154,57 @@ def shrink_limits(obj: ArticulatedObject, mans: dict, max_overlap: float = 0.01,
                   states: int = 10) -> int:
     """Each joint alone: where its sweep collides (intersection over the smaller volume
     above ``max_overlap``) or dips under the floor the object stands on, the range ends at
-    the last free state."""
+    the last free state. Then every joint together (the audit's "all joints at r" states):
+    two parts clear of each other one joint at a time can still meet when both move (a
+    safe's dial turned and its handle turned into it); the joints that move such a pair
+    apart from each other end at the last free state of all of them together. -> the
+    number of ranges shortened."""
     from model.core.contacts import checked_pairs
 
     vol = {i: max(float(m.volume()), 1e-15) for i, m in mans.items()}
     pairs = [(i, j) for i, j in checked_pairs(obj) if i in mans and j in mans]
     ground = min(float(m.bounding_box()[2]) for m in mans.values()) - 0.002 if mans else 0.0
-    shrunk = 0
     ratios = np.linspace(0.0, 1.0, states)[1:]
+    shrunk = _shrink_alone(obj, mans, vol, pairs, ground, ratios, max_overlap)
+    return shrunk + _shrink_together(obj, mans, vol, pairs, ratios, max_overlap)
+
+
+def _shrink_together(obj, mans, vol, pairs, ratios, max_overlap: float, rounds: int = 3) -> int:
+    """shrink_limits' second pass: every joint at the same ratio of its range."""
+    from model.core.contacts import pair_overlaps
+    subs = {k: set(obj.subtree(k)) for k in obj.movable_parts()}
+    # only pairs that two or more joints move apart: one joint alone was the first pass
+    pairs = [(i, j) for i, j in pairs
+             if sum((i in sub) != (j in sub) for sub in subs.values()) >= 2]
+    shrunk = 0
+    for _ in range(rounds):
+        last, hit = 0.0, []
+        for r in ratios if pairs else ():
+            T = obj.link_transforms(ratio={obj.parts[k].name: float(r) for k in subs})
+            hit = [(i, j) for i, j, o in pair_overlaps(obj, mans, vol, pairs, T) if o > max_overlap]
+            if hit:
+                break
+            last = float(r)
+        if not hit or last <= 0.0:
+            return shrunk          # free, or blocked at the first state: a layout fault
+        movers = {k for i, j in hit for k, sub in subs.items() if (i in sub) != (j in sub)}
+        for k in movers:
+            _scale_range(obj.parts[k].joint, last)
+        shrunk += len(movers)
+    return shrunk
+
+
+def _scale_range(j, share: float) -> None:
+    """The joint's ranges end at ``share`` of their length."""
+    lo_t, hi_t = j.t_range
+    lo_r, hi_r = j.r_range
+    j.t_range = (lo_t, lo_t + share * (hi_t - lo_t))
+    j.r_range = (lo_r, lo_r + share * (hi_r - lo_r))
+
+
+def _shrink_alone(obj, mans, vol, pairs, ground: float, ratios, max_overlap: float) -> int:
+    """shrink_limits' first pass: each joint alone."""
+    shrunk = 0
     for k in obj.movable_parts():
         sub = set(obj.subtree(k))
         todo = [(i, j) for i, j in pairs if (i in sub) != (j in sub)]
@@ -174,13 +217,9 @@ def shrink_limits(obj: ArticulatedObject, mans: dict, max_overlap: float = 0.01,
             last = float(r)
         else:
             continue
-        j = obj.parts[k].joint
         if last <= 0.0:
             continue               # blocked from the start: a layout fault, not a range
-        lo_t, hi_t = j.t_range
-        lo_r, hi_r = j.r_range
-        j.t_range = (lo_t, lo_t + last * (hi_t - lo_t))
-        j.r_range = (lo_r, lo_r + last * (hi_r - lo_r))
+        _scale_range(obj.parts[k].joint, last)
         shrunk += 1
     return shrunk
 
