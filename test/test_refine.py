@@ -410,6 +410,24 @@ def test_double_doors_swing_apart_and_knobs_keep_clear_of_a_door():
         knob.bbox_center[2] - knob.bbox_size[2] / 2 - CLEAR_SWING + 1e-9
 
 
+@pytest.mark.parametrize("category, label, decoded, kept", [
+    ("WashingMachine", "lid", 3.73, 120.0), ("Bottle", "lid", 3.0, 160.0),
+    ("StorageFurniture", "door", 1.6, np.degrees(1.6))])
+def test_a_door_or_lid_swings_no_further_than_the_datas(category, label, decoded, kept):
+    """A washer lid decoded with a 214 degree range swung over the back and hung down
+    behind the machine: doors and lids open at most as far as the data's widest (120
+    degrees; a bottle's flip lid 160); narrower ranges stay."""
+    lid = label == "lid"
+    obj = ArticulatedObject(category=category, name="o", parts=[
+        _part("body_0", "body", -1, (0.5, 0.5, 0.8), (0, 0, 0.4)),
+        _part(f"{label}_0", label, 0, (0.4, 0.4, 0.02) if lid else (0.02, 0.4, 0.6),
+              (0, 0, 0.79) if lid else (0.24, 0, 0.4),
+              Joint(JointType.REVOLUTE, (-0.2, 0, 0.8) if lid else (0.25, -0.2, 0.4),
+                    (0, -1, 0) if lid else (0, 0, 1), r_range=(0, decoded)))])
+    refine_layout(obj)
+    assert obj.parts[1].joint.r_range == pytest.approx((0.0, np.radians(kept)))
+
+
 def test_a_knob_cut_into_a_slab_is_round_again():
     """A knob decoded 20 cm wide, 1.5 cm tall and 10 cm deep on an oven's front: a square
     1.5 cm footprint about its centre, no deeper than that, its back still on the face."""
@@ -734,6 +752,43 @@ def test_a_seated_cap_turns_about_its_own_centre_line():
     cap = jar.parts[1]
     assert np.allclose(cap.bbox_center, (0, 0, 0.205))
     assert np.allclose(cap.joint.origin, (0, 0, 0.2))
+
+
+def _usb(cap_size, cap_centre, axis):
+    return ArticulatedObject(category="USB", name="usb", parts=[
+        _part("body_0", "body", -1, (0.05, 0.014, 0.006), (0.0, 0.0, 0.005)),
+        _part("cap_0", "cap", 0, cap_size, cap_centre,
+              Joint(JointType.REVOLUTE, (-0.014, 0.003, 0.007), axis, r_range=(0, 3.1))),
+    ])
+
+
+def test_a_usb_swivel_cap_wraps_its_stick():
+    """A swivel cap decoded 3.4 cm wide on a 1.4 cm stick, 1.7 cm thick on a 6 mm one, its
+    axis 6 degrees off: it turns about the stick's vertical exactly, 2 mm past the stick
+    on each side across it and along the axis, centred, pivot on the centre line; a second
+    pass changes nothing."""
+    tilted = np.array([0.1, 0.0, 0.995])
+    usb = _usb((0.05, 0.034, 0.017), (0.003, -0.003, 0.004), tilted / np.linalg.norm(tilted))
+    assert refine_layout(usb)["swivel_caps"] == 1
+    cap = usb.parts[1]
+    assert np.allclose(cap.joint.axis, (0, 0, 1))
+    assert np.allclose(cap.bbox_size[1:], (0.018, 0.010))
+    assert np.allclose(cap.bbox_center[1:], (0.0, 0.005))
+    assert cap.joint.origin[1] == pytest.approx(0.0)
+    assert refine_layout(usb)["swivel_caps"] == 0
+    # a cap no thicker than the stick and its wrap along the axis keeps that side
+    plate = _usb((0.05, 0.02, 0.008), (0.0, 0.0, -0.003), (0, 0, 1))
+    refine_layout(plate)
+    assert np.allclose(plate.parts[1].bbox_size, (0.05, 0.018, 0.008))
+    assert plate.parts[1].bbox_center[2] == pytest.approx(-0.003)
+    # a cap turning about the stick's length is no swivel; other categories' caps stay
+    for obj in (_usb((0.05, 0.034, 0.017), (0, 0, 0.005), (1, 0, 0)),
+                _usb((0.05, 0.034, 0.017), (0, 0, 0.005), (0, 0, 1))):
+        if obj.parts[1].joint.axis[0]:
+            assert refine_layout(obj)["swivel_caps"] == 0
+        else:
+            obj.category = "Bottle"
+            assert refine_layout(obj)["swivel_caps"] == 0
 
 
 @pytest.mark.parametrize("label", ["lid", "cap"])

@@ -198,6 +198,12 @@ def _hinge(obj: ArticulatedObject, i: int, face: tuple[int, float]) -> None:
         axis = -axis
     j.origin, j.axis = origin, axis
     _range_from_rest(j)
+    most = np.radians(PANEL_SWING.get(obj.category, PANEL_SWING[None]))
+    j.r_range = (0.0, float(min(j.r_range[1], most)))
+
+
+PANEL_SWING = {None: 120.0, "Bottle": 160.0}   # degrees: the widest door or lid swing of
+                                               # the data (model/data/synth), per category
 
 
 def _range_from_rest(j) -> None:
@@ -374,6 +380,43 @@ def _seat_cap(obj: ArticulatedObject, i: int) -> bool:
     return moved or recentred
 
 
+SWIVEL_WRAP = 0.002   # m: a swivel cap's plates stand this far past the stick on each side
+
+
+def _fit_swivel_cap(obj: ArticulatedObject, i: int) -> bool:
+    """A USB stick's swivel cap (a cap turning about an axis across the stick) wraps its
+    stick: it turns about that box axis exactly, and is no wider across the stick than the
+    stick's box and ``SWIVEL_WRAP`` on each side, centred on it, with its pivot on the
+    stick's centre line; along the axis, a cap thicker than that is cut to it, centred. The
+    data's caps are two plates 1 mm past the stick; a decoded cap 2.4 times as wide as its
+    stick swung its free stick around in the physics check. -> whether anything changed."""
+    p = obj.parts[i]
+    if obj.category != "USB" or p.label != "cap" or p.parent < 0 \
+            or p.joint.type not in (JointType.REVOLUTE, JointType.CONTINUOUS):
+        return False
+    body = obj.parts[p.parent]
+    k, sign = _principal(p.joint.axis)
+    long = int(np.argmax(body.bbox_size))
+    if k == long:
+        return False                      # turning about the stick's length: not a swivel
+    width = [d for d in range(3) if d not in (k, long)]
+    size, centre = p.bbox_size.copy(), p.bbox_center.copy()
+    for d in width + [k]:
+        most = body.bbox_size[d] + 2 * SWIVEL_WRAP
+        if d in width or size[d] > most:
+            size[d] = min(size[d], most)
+            centre[d] = body.bbox_center[d]
+    origin = np.asarray(p.joint.origin, dtype=np.float64).copy()
+    origin[width] = body.bbox_center[width]
+    axis = np.eye(3)[k] * sign
+    if np.allclose(size, p.bbox_size) and np.allclose(centre, p.bbox_center) \
+            and np.allclose(origin, p.joint.origin) and np.allclose(axis, p.joint.axis):
+        return False
+    p.bbox_size, p.bbox_center = size, centre
+    p.joint.origin, p.joint.axis = origin, axis
+    return True
+
+
 def _move_subtree(obj: ArticulatedObject, i: int, move) -> None:
     """Translate part ``i`` and every part below it (boxes and joint origins) by ``move``."""
     for c in obj.subtree(i):
@@ -453,6 +496,7 @@ def refine_layout(obj: ArticulatedObject, config: Optional[LayoutConfig] = None,
     order = obj.topological_order()            # parents first: children follow moved parents
     if cfg.attach:
         report["caps_seated"] = sum(_seat_cap(obj, i) for i in order)
+        report["swivel_caps"] = sum(_fit_swivel_cap(obj, i) for i in order)
     for i in order:
         face = face_of(obj, i)
         if face is None:
