@@ -67,18 +67,19 @@ def test_shipped_image_model_reads_rendered_examples(gen, tmp_path):
 
 
 def test_carved_parts_are_written_closed(tmp_path):
-    """The swivel cap carves the stick's body; exact booleans leave coincident vertices and
-    needle faces there, which the export collapses so the written OBJ reads back closed."""
+    """The screw cap's sweep carves the bottle's body; exact booleans leave coincident
+    vertices and needle faces there, which the export collapses so the written OBJ reads
+    back closed. (A swivel cap, fitted to its stick, no longer carves it.)"""
     import trimesh
 
     from model.pipeline.generator import Generator
     g = Generator.load(GenerationConfig())
     try:
-        [res] = g.generate("a memory stick with a swivel cap", seed=0)
+        [res] = g.generate("a water bottle with a screw cap", seed=0)
         assert "body_0" in res.obj.metadata["refine"]["meshes"]["carved"]
-        out = g.export(res, tmp_path / "usb", preview=False)
+        out = g.export(res, tmp_path / "bottle", preview=False)
         for p in res.obj.parts:
-            back = trimesh.load(tmp_path / "usb" / "meshes" / f"{p.name}.obj", force="mesh")
+            back = trimesh.load(tmp_path / "bottle" / "meshes" / f"{p.name}.obj", force="mesh")
             assert back.is_watertight, p.name
         assert out.urdf_path
     finally:
