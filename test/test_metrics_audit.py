@@ -80,6 +80,23 @@ def test_hinge_through_the_middle_of_a_door():
     assert rep.max_overlap > 0.01
 
 
+def test_a_postage_stamp_lid_is_no_lid():
+    """A washer lid decoded 6 x 4 cm on the back face of a 60 cm machine passed every other
+    check: a door or lid covers at least 2 % of its parent's face (the data's smallest
+    2.9 %); the sound cabinet's door covers all of it."""
+    from model.export.audit_checks import panel_cover
+    assert panel_cover(_cabinet(), 1) == pytest.approx(1.0)
+    obj = ArticulatedObject(category="WashingMachine", name="w", parts=[
+        _part("body_0", "body", -1, (0.6, 0.6, 1.0), (0, 0, 0.5)),
+        _part("lid_0", "lid", 0, (0.006, 0.06, 0.04), (-0.303, 0, 0.9),
+              Joint(JointType.REVOLUTE, (-0.306, -0.03, 0.92), (0, 0, 1), r_range=(0, 1.5)))])
+    assert panel_cover(obj, 1) == pytest.approx(0.06 * 0.04 / (0.6 * 1.0))
+    rep = audit_object(obj, config=GEOMETRY_ONLY)
+    assert "lid_0 covers 0.4% of its parent's face" in " ".join(rep.failures)
+    assert not rep.hinges[0]["ok"] and not rep.sim_ready
+    assert audit_object(obj, config=AuditConfig(physics=False, min_panel_cover=0.0)).sim_ready
+
+
 def test_tilted_drawer_axis():
     obj = _cabinet(drawer_axis=(1, 0, 1))          # the top drawer leaves through the top face
     assert slide_angle_deg(obj, 2) == pytest.approx(45.0, abs=1e-6)

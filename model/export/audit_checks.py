@@ -156,6 +156,21 @@ def hinge_offset(part) -> float:
     return float(d / width)
 
 
+def panel_cover(obj: ArticulatedObject, k: int) -> float:
+    """A door's or lid's area over its parent's: the panel's two largest sides against the
+    parent's extent along the same two axes (meshes where there are, else boxes). A lid
+    of a few centimetres on a washer's back face covers 0.1-0.4 %; the training data's
+    smallest 2.9 % (25,487 doors and lids of synth-v1, v4 and v5)."""
+    p = obj.parts[k]
+    if p.parent < 0:
+        return 1.0
+    lo, hi = _bounds(p)
+    plo, phi = _bounds(obj.parts[p.parent])
+    size, parent = hi - lo, phi - plo
+    axes = np.argsort(size)[1:]
+    return float(np.prod(size[axes]) / max(float(np.prod(parent[axes])), 1e-12))
+
+
 def opening_normal(obj: ArticulatedObject, k: int) -> np.ndarray:
     """Outward normal of the parent-box face a sliding part leaves through: the face its
     box, fully open, crosses furthest."""

@@ -39,7 +39,8 @@ from typing import Optional
 from model.core import ArticulatedObject, JointType
 
 from .audit_checks import (HINGED_LABELS, SLIDING_LABELS, _manifolds, attachment_gaps,
-                           axis_angle_deg, hinge_offset, mesh_health, overlaps, slide_angle_deg)
+                           axis_angle_deg, hinge_offset, mesh_health, overlaps, panel_cover,
+                           slide_angle_deg)
 
 log = logging.getLogger(__name__)
 
@@ -51,6 +52,8 @@ class AuditConfig:
     max_gap: float = 0.01          # m: a moving part's gap to its parent, rest and open
     max_axis_deg: float = 5.0      # hinge / drawer axis off its principal direction
     max_hinge_offset: float = 0.08 # hinge axis to the nearest door edge / panel width
+    min_panel_cover: float = 0.02  # a door's or lid's area over its parent's face (the
+                                   # data's smallest: 2.9 %; audit_checks.panel_cover)
     floater_area: float = 0.01     # a component under this share of its part's area floats
     face_budget: int = 30000       # faces per object (0: not checked)
     physics: bool = True           # run the MuJoCo check (needs a URDF; objects get exported)
@@ -128,11 +131,16 @@ def _geometry_checks(obj: ArticulatedObject, rep: ObjectAudit, cfg: AuditConfig)
         p = obj.parts[k]
         if p.label in HINGED_LABELS and p.joint.type == JointType.REVOLUTE:
             ang, off = axis_angle_deg(p.joint.axis)[0], hinge_offset(p)
+            cover = panel_cover(obj, k)
             ok = ang <= cfg.max_axis_deg and off <= cfg.max_hinge_offset
-            rep.hinges.append({"part": p.name, "angle_deg": ang, "offset": off, "ok": ok})
+            rep.hinges.append({"part": p.name, "angle_deg": ang, "offset": off, "cover": cover,
+                               "ok": ok and cover >= cfg.min_panel_cover})
             if not ok:
                 rep.failures.append(f"{p.name} hinge {ang:.0f} deg off its axis, "
                                     f"{off:.0%} of its width from an edge")
+            if cover < cfg.min_panel_cover:
+                rep.failures.append(f"{p.name} covers {cover:.1%} of its parent's face "
+                                    f"(a door or lid: at least {cfg.min_panel_cover:.0%})")
         if p.label in SLIDING_LABELS and p.joint.type == JointType.PRISMATIC and p.parent >= 0:
             ang = slide_angle_deg(obj, k)
             ok = ang <= cfg.max_axis_deg
