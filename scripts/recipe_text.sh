@@ -9,9 +9,10 @@
 #
 # Settings (environment variables, defaults below): DATA, PRIOR, SDF, PRESET, TEXT_STEPS,
 # IMAGE_STEPS, TRUNK, FRAME, MODES, SEED, THREADS, CHUNK_MIN, RUNS, INIT, LR. INIT starts the
-# text model from a finished checkpoint (a fine-tune, e.g. onto another shape prior's targets). FRAME and MODES are the token
-# frame and articulation modes (docs/results/layout_training.md). Each run folder gets
-# RECIPE.md with the command lines, seed, data version, device and wall time of every chunk.
+# text model from a finished checkpoint (a fine-tune, e.g. onto another shape prior's targets).
+# FRAME and MODES are the token frame and articulation modes (docs/results/layout_training.md).
+# Each run folder gets RECIPE.md with the command lines, seed, data version, device and wall
+# time of every chunk.
 # Nothing is copied into model/weights: the fp16 files land in RUNS, to be shipped only when
 # they beat the shipped ones on validation data.
 set -euo pipefail

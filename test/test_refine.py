@@ -210,7 +210,8 @@ def test_limits_shrink_where_two_joints_meet_only_together():
     assert audit_object(obj, config=GEOMETRY_ONLY).max_overlap <= 0.01
     one = _meshed(ArticulatedObject(category="StorageFurniture", name="one", parts=[
         _part("body_0", "body", -1, (0.8, 0.3, 0.1), (0, 0, 0.05)), slide("drawer_0", -0.25, 1.0)]))
-    assert shrink_limits(one, {i: meshops.to_manifold(p.mesh) for i, p in enumerate(one.parts)}) == 0
+    one_mans = {i: meshops.to_manifold(p.mesh) for i, p in enumerate(one.parts)}
+    assert shrink_limits(one, one_mans) == 0
 
 
 def _small_fronts() -> ArticulatedObject:
