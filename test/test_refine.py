@@ -755,6 +755,32 @@ def test_a_seated_cap_turns_about_its_own_centre_line():
     assert np.allclose(cap.joint.origin, (0, 0, 0.2))
 
 
+def test_a_door_decoded_on_a_side_face_turns_onto_the_front():
+    """A wardrobe with one door on its front (+x) and one on its right side: the side door
+    and its handle turn about the body's vertical centre line onto the front, where the two
+    stand side by side without overlapping; a safe (not storage furniture) keeps its
+    layout, and a cabinet with every front on one face is left alone."""
+    def wardrobe(category="StorageFurniture"):
+        return ArticulatedObject(category=category, name="w", parts=[
+            _part("body_0", "body", -1, (0.6, 1.0, 2.0), (0, 0, 1.0)),
+            _part("door_0", "door", 0, (0.02, 0.48, 1.9), (0.31, 0.25, 1.0),
+                  Joint(JointType.REVOLUTE, (0.32, 0.49, 1.0), (0, 0, 1), r_range=(0, 1.5))),
+            _part("door_1", "door", 0, (0.5, 0.02, 1.9), (0.0, 0.51, 1.0),
+                  Joint(JointType.REVOLUTE, (-0.25, 0.52, 1.0), (0, 0, 1), r_range=(0, 1.5))),
+            _part("handle_0", "handle", 2, (0.03, 0.02, 0.2), (-0.2, 0.53, 1.0))])
+    from model.refine.layout import face_of
+    obj = wardrobe()
+    rep = refine_layout(obj)
+    assert rep["fronts_turned"] == 1
+    assert [face_of(obj, i) for i in (1, 2, 3)] == [(0, 1.0)] * 3
+    a, b = obj.parts[1], obj.parts[2]
+    assert not _boxes_overlap(a, b)
+    assert np.allclose(b.joint.axis, (0, 0, 1)) or np.allclose(b.joint.axis, (0, 0, -1))
+    assert _structure(obj) == _structure(wardrobe())
+    assert refine_layout(wardrobe("Safe"))["fronts_turned"] == 0
+    assert refine_layout(obj)["fronts_turned"] == 0
+
+
 def _usb(cap_size, cap_centre, axis):
     return ArticulatedObject(category="USB", name="usb", parts=[
         _part("body_0", "body", -1, (0.05, 0.014, 0.006), (0.0, 0.0, 0.005)),

@@ -417,6 +417,41 @@ def _fit_swivel_cap(obj: ArticulatedObject, i: int) -> bool:
     return True
 
 
+def _fronts_to_one_face(obj: ArticulatedObject) -> int:
+    """Storage furniture keeps its doors and drawers on one face, as every object of the data
+    does: a front decoded on a side face while more of its siblings (or, on a tie, the +x
+    front) are on another vertical face turns with its handles about the parent's vertical
+    centre line onto that face; attaching and the sibling steps then place it. A bare "a
+    wardrobe" had its second door on a side with 3 of 8 seeds. -> fronts turned."""
+    if obj.category != "StorageFurniture":
+        return 0
+    turned = 0
+    for parent in {p.parent for p in obj.parts if p.label in FRONT_LABELS and p.parent >= 0}:
+        fronts = [i for i, p in enumerate(obj.parts) if p.parent == parent
+                  and p.label in ("door", "drawer")]
+        faces = {i: face_of(obj, i) for i in fronts}
+        sides = [f for f in faces.values() if f is not None and f[0] != 2]
+        if len(sides) < 2:
+            continue
+        votes = {f: sides.count(f) + (0.5 if f == (0, 1.0) else 0.0) for f in set(sides)}
+        k, s = max(votes, key=votes.get)
+        want = np.arctan2(s * (k == 1), s * (k == 0))
+        centre = obj.parts[parent].bbox_center
+        for i, f in faces.items():
+            if f is None or f[0] == 2 or f == (k, s):
+                continue
+            a = want - np.arctan2(f[1] * (f[0] == 1), f[1] * (f[0] == 0))
+            c, n = np.round(np.cos(a)), np.round(np.sin(a))
+            R = np.array([[c, -n, 0.0], [n, c, 0.0], [0.0, 0.0, 1.0]])
+            for q in (obj.parts[d] for d in obj.subtree(i)):
+                q.bbox_center = centre + R @ (q.bbox_center - centre)
+                q.bbox_size = np.abs(R) @ q.bbox_size
+                q.joint.origin = centre + R @ (np.asarray(q.joint.origin, float) - centre)
+                q.joint.axis = R @ np.asarray(q.joint.axis, float)
+            turned += 1
+    return turned
+
+
 def _move_subtree(obj: ArticulatedObject, i: int, move) -> None:
     """Translate part ``i`` and every part below it (boxes and joint origins) by ``move``."""
     for c in obj.subtree(i):
@@ -497,6 +532,7 @@ def refine_layout(obj: ArticulatedObject, config: Optional[LayoutConfig] = None,
     if cfg.attach:
         report["caps_seated"] = sum(_seat_cap(obj, i) for i in order)
         report["swivel_caps"] = sum(_fit_swivel_cap(obj, i) for i in order)
+        report["fronts_turned"] = _fronts_to_one_face(obj)
     for i in order:
         face = face_of(obj, i)
         if face is None:
