@@ -426,9 +426,9 @@ def _fronts_to_one_face(obj: ArticulatedObject) -> int:
     if obj.category != "StorageFurniture":
         return 0
     turned = 0
-    for parent in {p.parent for p in obj.parts if p.label in FRONT_LABELS and p.parent >= 0}:
-        fronts = [i for i, p in enumerate(obj.parts) if p.parent == parent
-                  and p.label in ("door", "drawer")]
+    labels = ("door", "drawer")
+    for parent in {p.parent for p in obj.parts if p.label in labels and p.parent >= 0}:
+        fronts = [i for i, p in enumerate(obj.parts) if p.parent == parent and p.label in labels]
         faces = {i: face_of(obj, i) for i in fronts}
         sides = [f for f in faces.values() if f is not None and f[0] != 2]
         if len(sides) < 2:

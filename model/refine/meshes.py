@@ -165,14 +165,15 @@ def shrink_limits(obj: ArticulatedObject, mans: dict, max_overlap: float = 0.01,
     pairs = [(i, j) for i, j in checked_pairs(obj) if i in mans and j in mans]
     ground = min(float(m.bounding_box()[2]) for m in mans.values()) - 0.002 if mans else 0.0
     ratios = np.linspace(0.0, 1.0, states)[1:]
-    shrunk = _shrink_alone(obj, mans, vol, pairs, ground, ratios, max_overlap)
-    return shrunk + _shrink_together(obj, mans, vol, pairs, ratios, max_overlap)
+    subs = {k: set(obj.subtree(k)) for k in obj.movable_parts()}   # what each joint moves
+    shrunk = _shrink_alone(obj, mans, vol, pairs, subs, ground, ratios, max_overlap)
+    return shrunk + _shrink_together(obj, mans, vol, pairs, subs, ratios, max_overlap)
 
 
-def _shrink_together(obj, mans, vol, pairs, ratios, max_overlap: float, rounds: int = 3) -> int:
+def _shrink_together(obj, mans, vol, pairs, subs, ratios, max_overlap: float,
+                     rounds: int = 3) -> int:
     """shrink_limits' second pass: every joint at the same ratio of its range."""
     from model.core.contacts import pair_overlaps
-    subs = {k: set(obj.subtree(k)) for k in obj.movable_parts()}
     # only pairs that two or more joints move apart: one joint alone was the first pass
     pairs = [(i, j) for i, j in pairs
              if sum((i in sub) != (j in sub) for sub in subs.values()) >= 2]
@@ -202,11 +203,11 @@ def _scale_range(j, share: float) -> None:
     j.r_range = (lo_r, lo_r + share * (hi_r - lo_r))
 
 
-def _shrink_alone(obj, mans, vol, pairs, ground: float, ratios, max_overlap: float) -> int:
+def _shrink_alone(obj, mans, vol, pairs, subs, ground: float, ratios,
+                  max_overlap: float) -> int:
     """shrink_limits' first pass: each joint alone."""
     shrunk = 0
-    for k in obj.movable_parts():
-        sub = set(obj.subtree(k))
+    for k, sub in subs.items():
         todo = [(i, j) for i, j in pairs if (i in sub) != (j in sub)]
         last = 0.0
         for r in ratios:
