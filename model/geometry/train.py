@@ -117,6 +117,9 @@ def train_sdf(args: RunArgs) -> dict:
     max_sdf = preset.sdf_train.max_sdf
     cache = out / "cache"
     workers = max(1, (args.threads or preset.sdf_train.threads) // dist.world)
+    if not dist.main:
+        dist.barrier()   # rank 0 builds the part caches first: ranks sharing one shard
+                         # folder would remove it under each other
     train = load_parts(args.data, "train", progress=dist.main and args.progress, max_sdf=max_sdf,
                        seed=args.seed, cache_dir=cache, workers=workers)
     try:
@@ -124,6 +127,8 @@ def train_sdf(args: RunArgs) -> dict:
                          workers=workers)
     except (KeyError, ValueError):
         val = train
+    if dist.main:
+        dist.barrier()
     tcfg = _train_cfg(preset.sdf_train, args, len(train), dist.world)
     torch.set_num_threads(max(1, tcfg.threads // dist.world))
     torch.manual_seed(args.seed)
