@@ -8,9 +8,14 @@ ship rule's verdict.
 Ship rule (decided on these validation figures; test and held-out are scored once, after):
 the candidate ships when it is better on template alignment (the project metric) and on
 the raw audit, and no worse than the shipped model on the refined audit's sim-ready share and
-its objects whose worst part has at most 2 connected components (one object of the 96
+its objects whose worst part has at most 2 connected components (1.5 % of the objects
 allowed each), free-form and dev alignment (1 point allowed), collapsed sibling pairs and
 bare names decoded with a moving part (scripts/bare_names.py).
+
+The audit runs 6 seeds (288 objects). The component row mostly measures the shape prior,
+which a candidate may share with the shipped model; at 96 objects a difference of 2 objects
+is within one standard error of the difference of two shares near 96 %, so a smaller sample
+decides on noise.
 """
 from __future__ import annotations
 
@@ -64,8 +69,8 @@ def measures(runs: Path, who: str) -> dict:
 
 
 LOWER_IS_BETTER = ("collapsed",)
-SLACK = {"audit refined: sim-ready": 1.5 / 96,
-         "audit refined: worst part <= 2 components": 1.5 / 96,
+SLACK = {"audit refined: sim-ready": 0.015,
+         "audit refined: worst part <= 2 components": 0.015,
          "freeform prompts: alignment": 0.01, "dev prompts: alignment": 0.01}
 
 

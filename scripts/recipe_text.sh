@@ -88,7 +88,7 @@ stage_text_eval() {   # validation only: the test split is scored once, for the 
   local ck set
   for ck in candidate shipped; do
     local opt=(); [ "$ck" = candidate ] && opt=(--checkpoint "$RUNS/candidate")
-    artformer eval audit --seeds 2 --rows raw,refined \
+    artformer eval audit --seeds 6 --rows raw,refined \
       --freeform-file model/metrics/prompts_bench.txt --out "$RUNS/audit_$ck" "${opt[@]}"
     for set in freeform dev; do
       artformer eval --freeform-only --seeds 3 --freeform-file "model/metrics/prompts_$set.txt" \
