@@ -135,6 +135,21 @@ def test_category_specific_joints():
     assert labels.get("door") == 1 and labels.get("knob", 0) >= 2
 
 
+def test_bottle_bodies_are_solid_with_an_open_mouth():
+    """synth-8: a bottle body fills most of its box (synth-7's hollow shell: 9-19 %) and keeps
+    an open neck bore under its cap or lid."""
+    import igl
+    for i in range(6):
+        o = synth.generate_object(seed=2, index=i, category="Bottle")
+        body = o.parts[0]                                  # the root
+        lo, hi = body.mesh.bounds
+        assert meshops.volume(body.mesh) / np.prod(hi - lo) > 0.4, (i, o.name)
+        v, f = np.asarray(body.mesh.vertices, float), np.asarray(body.mesh.faces, np.int64)
+        probes = np.array([[0.0, 0.0, hi[2] - 0.003], [0.0, 0.0, (lo[2] + hi[2]) / 2]])
+        inside = igl.winding_number(v, f, probes) > 0.5
+        assert list(inside) == [False, True], (i, o.name)     # mouth open, body solid
+
+
 def test_small_objects_that_fail_the_physics_check_are_redrawn():
     """usb 0/28 as first drawn spins around its swivel cap when free on the floor (the base
     walks); synth-5 checks objects of up to three parts in MuJoCo and redraws that one."""

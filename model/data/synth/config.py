@@ -16,8 +16,9 @@ CATEGORY_WEIGHTS: dict[str, float] = {"StorageFurniture": 0.34, "Safe": 0.12, "O
 # check (a swivel cap resting on the floor could spin its free stick around); synth-6: so do
 # objects with a door or lid on a horizontal hinge (a drop-down oven door with its tray
 # pulled out could walk the free base 4 cm); synth-7: a storage band of drawers 45 cm or
-# taller is split into rows, and no drawer front is taller than 1.2 x its width.
-GENERATOR_VERSION = "synth-7"
+# taller is split into rows, and no drawer front is taller than 1.2 x its width; synth-8: bottle
+# bodies are solid with an open mouth (the neck bore) instead of a 1.5-3 mm hollow shell.
+GENERATOR_VERSION = "synth-8"
 
 
 @dataclass

@@ -24,12 +24,12 @@ def _gen_bottle(rng, b: _Builder) -> None:
         if segs > 10 else meshops.cylinder(Rb * 0.98, hs, (0, 0, hb + hs / 2 - 1e-5), segments=48, radius_top=Rn),
         meshops.cylinder(Rn, hn + 0.001, (0, 0, hb + hs + hn / 2 - 0.0005), segments=48)])
     ztop = hb + hs + hn
-    ri = Rb - w if segs > 10 else Rb * 0.8
-    inner = meshops.union_manifolds([
-        meshops.cylinder(ri, hb - w, (0, 0, w + (hb - w) / 2 + 1e-4), segments=48),
-        meshops.cylinder(ri, hs, (0, 0, hb + hs / 2), segments=48, radius_top=Rn - w),
-        meshops.cylinder(Rn - w, hn + 0.01, (0, 0, hb + hs + hn / 2 + 0.004), segments=48)])
-    body_man = outer - inner
+    # a solid body with an open mouth: the neck bore, 0.6 of the neck deep, its wall twice the
+    # body's wall (synth-8; the hollow 1.5-3 mm shell of synth-1..7 is about one cell of the
+    # shape prior's 64-cell box frame and decoded shredded)
+    rm, depth = Rn - 2 * w, 0.6 * hn
+    body_man = outer - meshops.cylinder(rm, depth + 0.01, (0, 0, ztop - depth + (depth + 0.01) / 2),
+                                        segments=48)
     kind = "screw" if rng.random() < 0.65 else "flip"
     if kind == "screw":
         body = b.add("body", body_man)
@@ -53,7 +53,7 @@ def _gen_bottle(rng, b: _Builder) -> None:
         Rc = Rn + _u(rng, 0.003, 0.008)
         hcol = _u(rng, 0.006, 0.012)
         collar = meshops.cylinder(Rc, hcol, (0, 0, ztop - hcol / 2), segments=48) - \
-            meshops.cylinder(Rn - w, hcol + 0.01, (0, 0, ztop - hcol / 2), segments=48)
+            meshops.cylinder(rm, hcol + 0.01, (0, 0, ztop - hcol / 2), segments=48)
         body = b.add("body", body_man + collar)
         c = 0.0008
         tl = _u(rng, 0.004, 0.008)
