@@ -19,10 +19,10 @@ set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 source scripts/env.sh
 
-NAME=${NAME:-v5}                         # the data: synth-7 objects (tall drawers split into rows)
+NAME=${NAME:-v6}                         # the data: synth-8 objects (v5's trees, solid bottles)
 DATA=${DATA:-data/prepared/$NAME}
 RENDERS=${RENDERS:-data/renders/$NAME}
-GEOMETRY=${GEOMETRY:-runs/geometry_v4}   # the shape prior, trained on synth-v4 parts
+GEOMETRY=${GEOMETRY:-runs/geometry_v6}   # the shape prior, trained on synth-v6 parts
 PRESET=${PRESET:-small}
 PRIOR=${PRIOR:-$GEOMETRY/prior_small-fine.pt}
 SDF=${SDF:-$GEOMETRY/sdf_small-fine.pt}
