@@ -434,13 +434,12 @@ def _fronts_to_one_face(obj: ArticulatedObject) -> int:
         if len(sides) < 2:
             continue
         votes = {f: sides.count(f) + (0.5 if f == (0, 1.0) else 0.0) for f in set(sides)}
-        k, s = max(votes, key=votes.get)
-        want = np.arctan2(s * (k == 1), s * (k == 0))
+        best = max(votes, key=votes.get)
         centre = obj.parts[parent].bbox_center
         for i, f in faces.items():
-            if f is None or f[0] == 2 or f == (k, s):
+            if f is None or f[0] == 2 or f == best:
                 continue
-            a = want - np.arctan2(f[1] * (f[0] == 1), f[1] * (f[0] == 0))
+            a = _heading(best) - _heading(f)
             c, n = np.round(np.cos(a)), np.round(np.sin(a))
             R = np.array([[c, -n, 0.0], [n, c, 0.0], [0.0, 0.0, 1.0]])
             for q in (obj.parts[d] for d in obj.subtree(i)):
@@ -450,6 +449,12 @@ def _fronts_to_one_face(obj: ArticulatedObject) -> int:
                 q.joint.axis = R @ np.asarray(q.joint.axis, float)
             turned += 1
     return turned
+
+
+def _heading(face: tuple[int, float]) -> float:
+    """The angle about +z of a vertical face's outward normal (face_of's (axis, sign))."""
+    k, s = face
+    return float(np.arctan2(s * (k == 1), s * (k == 0)))
 
 
 def _move_subtree(obj: ArticulatedObject, i: int, move) -> None:
