@@ -22,6 +22,9 @@ source scripts/env.sh
 NAME=${NAME:-v6}                         # the data: synth-8 objects (v5's trees, solid bottles)
 DATA=${DATA:-data/prepared/$NAME}
 RENDERS=${RENDERS:-data/renders/$NAME}
+# an earlier render folder whose views stand in for objects that did not change (byte-identical
+# to rendering them; `artformer data render --reuse`); skipped when it is not there
+RENDER_REUSE=${RENDER_REUSE:-data/renders/v5}
 GEOMETRY=${GEOMETRY:-runs/geometry_v6}   # the shape prior, trained on synth-v6 parts
 PRESET=${PRESET:-small}
 PRIOR=${PRIOR:-$GEOMETRY/prior_small-fine.pt}
@@ -101,12 +104,11 @@ stage_text_eval() {   # validation only: the test split is scored once, for the 
   python scripts/compare_candidate.py "$RUNS" --markdown "$RUNS/compare_val.md"
 }
 
-stage_render() {
-  if [ ! -f "$RENDERS/manifest.json" ]; then
-    local t0; t0=$(date -u +%s)
-    artformer data render --data "$DATA" --out "$RENDERS" --views 8 --workers "$THREADS"
-    record "$RUNS" "$(date -u +%FT%TZ) renders: \`artformer data render --data $DATA --out $RENDERS --views 8\`: $(( $(date -u +%s) - t0 )) s wall"
-  fi
+stage_render() {   # resumable: objects already rendered are skipped
+  local t0 reuse=(); t0=$(date -u +%s)
+  if [ -f "$RENDER_REUSE/manifest.json" ]; then reuse=(--reuse "$RENDER_REUSE"); fi
+  artformer data render --data "$DATA" --out "$RENDERS" --views 8 --workers "$THREADS" "${reuse[@]}"
+  record "$RUNS" "$(date -u +%FT%TZ) renders: \`artformer data render --data $DATA --out $RENDERS --views 8 ${reuse[*]}\`: $(( $(date -u +%s) - t0 )) s wall"
 }
 
 stage_image() {

@@ -61,6 +61,42 @@ def test_render_dataset_cache_is_resumable_and_versioned(tmp_path, examples):
         render_dataset(data, out, views=4, seed=1, workers=1)
 
 
+def test_a_new_data_version_takes_the_views_of_unchanged_objects(tmp_path, examples):
+    """--reuse: the object whose mesh changed is rendered again, the unchanged one takes the
+    earlier folder's views, byte for byte what rendering it would give; other render
+    settings or a missing earlier dataset are refused."""
+    import copy
+    import shutil
+
+    from model.imaging.renders import RenderSetError, render_dataset
+    splits = {"train": ["cabinet"], "val": [], "test": ["bottle"]}
+    old, new = tmp_path / "v_old", tmp_path / "v_new"
+    write_prepared(old, examples, splits, version="old")
+    changed = dict(examples, bottle=copy.deepcopy(examples["bottle"]))
+    changed["bottle"].parts[0].mesh.apply_scale(0.9)         # a thinner body, same tree
+    write_prepared(new, changed, splits, version="new")
+    render_dataset(old, tmp_path / "r_old", views=2, seed=1, workers=1)
+    rep = render_dataset(new, tmp_path / "r_new", views=2, seed=1, workers=1,
+                         reuse=tmp_path / "r_old")
+    assert (rep.reused, rep.rendered, rep.skipped, rep.failed) == (1, 1, 0, {})
+    fresh = render_dataset(new, tmp_path / "r_fresh", views=2, seed=1, workers=1)
+    assert fresh.rendered == 2
+    def views(folder, oid):
+        return [(tmp_path / folder / "objects" / oid / f"{k}.png").read_bytes() for k in (0, 1)]
+    assert views("r_new", "cabinet") == views("r_fresh", "cabinet") == views("r_old", "cabinet")
+    assert views("r_new", "bottle") == views("r_fresh", "bottle") != views("r_old", "bottle")
+    meta = json.loads((tmp_path / "r_new" / "objects" / "cabinet" / "views.json").read_text())
+    assert meta["split"] == "train"
+    # done objects stay done; a reuse source of other settings or without its data is refused
+    assert render_dataset(new, tmp_path / "r_new", views=2, seed=1, workers=1,
+                          reuse=tmp_path / "r_old").skipped == 2
+    with pytest.raises(RenderSetError, match="other settings"):
+        render_dataset(new, tmp_path / "r_3", views=2, seed=2, workers=1, reuse=tmp_path / "r_old")
+    shutil.rmtree(old)
+    with pytest.raises(RenderSetError, match="is not here"):
+        render_dataset(new, tmp_path / "r_4", views=2, seed=1, workers=1, reuse=tmp_path / "r_old")
+
+
 def test_objects_without_prepared_meshes_come_from_their_source_folder(tmp_path, examples):
     import shutil
 

@@ -20,17 +20,22 @@ def _render(argv: list[str]) -> int:
     ap.add_argument("--workers", type=int, default=2, help="processes (default 2)")
     ap.add_argument("--limit", type=int, default=0, help="only the first N objects of each split")
     ap.add_argument("--splits", default="train,val,test")
+    ap.add_argument("--reuse", default=None, metavar="RENDERS",
+                    help="an earlier render folder (same settings, another data version): "
+                         "objects whose record and meshes are unchanged take its views")
     args = ap.parse_args(argv)
     from .renders import RenderSetError, render_dataset
     try:
         rep = render_dataset(args.data, args.out, views=args.views, seed=args.seed,
                              workers=args.workers, limit=args.limit,
-                             splits=tuple(s for s in args.splits.split(",") if s), progress=True)
+                             splits=tuple(s for s in args.splits.split(",") if s), progress=True,
+                             reuse=args.reuse)
     except (RenderSetError, FileNotFoundError, ValueError) as e:
         print(f"artformer data render: {e}", file=sys.stderr)
         return 2
+    reused = f"{rep.reused} taken from {args.reuse}, " if args.reuse else ""
     print(f"rendered {rep.rendered} objects ({args.views} views each), {rep.skipped} already done, "
-          f"{len(rep.failed)} failed, {rep.seconds:.1f} s -> {args.out}")
+          f"{reused}{len(rep.failed)} failed, {rep.seconds:.1f} s -> {args.out}")
     for oid, err in list(rep.failed.items())[:10]:
         print(f"  failed {oid}: {err}", file=sys.stderr)
     return 1 if rep.failed and not rep.rendered else 0

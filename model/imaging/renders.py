@@ -10,10 +10,14 @@ Layout of a render folder ``OUT`` (one per render version)::
     OUT/features/<tag>.npz     cached encoder trunk features of every view (model.imaging.train)
 
 Rendering is resumable (done objects are skipped), deterministic per (object id, seed), and
-parallel over objects (a process pool).
+parallel over objects (a process pool). ``reuse`` names an earlier render folder (same render
+settings) of another data version: an object whose render inputs (record tree and tokens,
+prepared mesh bytes) are the same in both datasets gets that folder's views instead of being
+rendered again, so a data version that changes one category re-renders only that category.
 """
 from __future__ import annotations
 
+import hashlib
 import io
 import json
 import logging
@@ -96,18 +100,75 @@ def _render_one(args) -> tuple[str, Optional[str]]:
         return obj_id, f"{type(e).__name__}: {e}"
 
 
+def render_inputs(data_root: os.PathLike, obj_id: str) -> Optional[str]:
+    """A digest of what the renders of one object depend on besides the view settings: its
+    record's tree, labels and tokens and the bytes of its prepared meshes (None when a mesh
+    or the record is missing: such an object is always rendered)."""
+    root = Path(data_root)
+    try:
+        rec = load_record(root, obj_id)
+    except FileNotFoundError:
+        return None
+    h = hashlib.sha256(json.dumps([rec.category, rec.labels, rec.parents, rec.joint_types,
+                                   rec.tokens]).encode())
+    for k in range(rec.num_parts):
+        path = root / "meshes" / obj_id / f"{k}.obj"
+        if not path.exists():
+            return None
+        h.update(path.read_bytes())
+    return h.hexdigest()
+
+
+def _reuse_one(args) -> tuple[str, bool]:
+    """Copy one object's views from an earlier render folder when its inputs are the same."""
+    data_root, out_root, obj_id, old_data, old_out = args
+    src = Path(old_out) / "objects" / obj_id
+    if not (src / "views.json").exists():
+        return obj_id, False
+    mine = render_inputs(data_root, obj_id)
+    if mine is None or mine != render_inputs(old_data, obj_id):
+        return obj_id, False
+    meta = json.loads((src / "views.json").read_text())
+    rec = load_record(data_root, obj_id)
+    folder = Path(out_root) / "objects" / obj_id
+    for k in range(len(meta["views"])):
+        atomic_write_bytes(folder / f"{k}.png", (src / f"{k}.png").read_bytes())
+    atomic_write_json(folder / "views.json", {**meta, "category": rec.category,
+                                              "split": rec.split})
+    return obj_id, True
+
+
+def _reuse_source(reuse: os.PathLike, want: dict) -> tuple[Path, Path]:
+    """The earlier render folder and its dataset, checked against the requested settings."""
+    reuse = Path(reuse)
+    have = load_render_manifest(reuse)
+    keys = ("format", "render_version", "views", "size", "seed")
+    diff = {k: (have.get(k), want[k]) for k in keys if have.get(k) != want[k]}
+    if diff:
+        raise RenderSetError(f"--reuse {reuse} was rendered with other settings {diff} "
+                             f"(its, requested): its views cannot stand in for new ones")
+    old_data = Path(have.get("data", ""))
+    if not (old_data / "manifest.json").exists():
+        raise RenderSetError(f"--reuse {reuse}: its dataset {str(old_data)!r} is not here, so "
+                             f"its objects cannot be compared with the new ones")
+    return reuse, old_data
+
+
 @dataclass
 class RenderReport:
     rendered: int
     skipped: int
     failed: dict
     seconds: float
+    reused: int = 0
 
 
 def render_dataset(data_root: os.PathLike, out_root: os.PathLike, views: int = 8, seed: int = 0,
                    workers: int = 2, limit: int = 0, splits: tuple[str, ...] = ("train", "val", "test"),
-                   progress: bool = False) -> RenderReport:
-    """Render every object of the given splits (``limit`` > 0: the first N ids of each split)."""
+                   progress: bool = False, reuse: Optional[os.PathLike] = None) -> RenderReport:
+    """Render every object of the given splits (``limit`` > 0: the first N ids of each split).
+    ``reuse``: an earlier render folder whose views stand in for objects with the same render
+    inputs (module doc); ``RenderReport.reused`` counts them."""
     import time
     t0 = time.perf_counter()
     data_root, out_root = Path(data_root), Path(out_root)
@@ -130,13 +191,21 @@ def render_dataset(data_root: os.PathLike, out_root: os.PathLike, views: int = 8
         sid = list(manifest["splits"].get(s, []))
         ids += sid[:limit] if limit > 0 else sid
     todo = [i for i in ids if not (out_root / "objects" / i / "views.json").exists()]
+    from model.core.runtime import map_jobs
+    reused = 0
+    if reuse is not None and todo:
+        old_out, old_data = _reuse_source(reuse, want)
+        copied = {oid for oid, ok in map_jobs(
+            _reuse_one, [(str(data_root), str(out_root), i, str(old_data), str(old_out))
+                         for i in todo], workers) if ok}
+        reused = len(copied)
+        todo = [i for i in todo if i not in copied]
     jobs = [(str(data_root), str(out_root), i, int(views), int(seed), RENDER_SIZE) for i in todo]
     failed = {}
     bar = None
     if progress:
         from tqdm import tqdm
         bar = tqdm(total=len(jobs), desc="render", unit="obj")
-    from model.core.runtime import map_jobs
     for oid, err in map_jobs(_render_one, jobs, workers):
         if err:
             failed[oid] = err
@@ -146,8 +215,9 @@ def render_dataset(data_root: os.PathLike, out_root: os.PathLike, views: int = 8
         bar.close()
     for oid, err in list(failed.items())[:5]:
         log.warning("render of %s failed: %s", oid, err)
-    return RenderReport(rendered=len(jobs) - len(failed), skipped=len(ids) - len(jobs),
-                        failed=failed, seconds=time.perf_counter() - t0)
+    return RenderReport(rendered=len(jobs) - len(failed),
+                        skipped=len(ids) - len(jobs) - reused, failed=failed,
+                        seconds=time.perf_counter() - t0, reused=reused)
 
 
 # ---------------------------------------------------------------------------------------------
