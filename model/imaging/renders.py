@@ -131,8 +131,15 @@ def _reuse_one(args) -> tuple[str, bool]:
     meta = json.loads((src / "views.json").read_text())
     rec = load_record(data_root, obj_id)
     folder = Path(out_root) / "objects" / obj_id
-    for k in range(len(meta["views"])):
-        atomic_write_bytes(folder / f"{k}.png", (src / f"{k}.png").read_bytes())
+    folder.mkdir(parents=True, exist_ok=True)
+    for k in range(len(meta["views"])):      # a hard link where both folders share a disk
+        tmp = folder / f".{k}.png.link"
+        try:
+            tmp.unlink(missing_ok=True)
+            os.link(src / f"{k}.png", tmp)
+            os.replace(tmp, folder / f"{k}.png")
+        except OSError:
+            atomic_write_bytes(folder / f"{k}.png", (src / f"{k}.png").read_bytes())
     atomic_write_json(folder / "views.json", {**meta, "category": rec.category,
                                               "split": rec.split})
     return obj_id, True
