@@ -104,11 +104,15 @@ def render_inputs(data_root: os.PathLike, obj_id: str) -> Optional[str]:
     """A digest of what the renders of one object depend on besides the view settings: its
     record's tree, labels and tokens and the bytes of its prepared meshes (None when a mesh
     or the record is missing: such an object is always rendered)."""
-    root = Path(data_root)
     try:
-        rec = load_record(root, obj_id)
+        rec = load_record(data_root, obj_id)
     except FileNotFoundError:
         return None
+    return _inputs_digest(data_root, rec)
+
+
+def _inputs_digest(data_root: os.PathLike, rec: ObjectRecord) -> Optional[str]:
+    root, obj_id = Path(data_root), rec.id
     h = hashlib.sha256(json.dumps([rec.category, rec.labels, rec.parents, rec.joint_types,
                                    rec.tokens]).encode())
     for k in range(rec.num_parts):
@@ -125,11 +129,14 @@ def _reuse_one(args) -> tuple[str, bool]:
     src = Path(old_out) / "objects" / obj_id
     if not (src / "views.json").exists():
         return obj_id, False
-    mine = render_inputs(data_root, obj_id)
+    try:
+        rec = load_record(data_root, obj_id)
+    except FileNotFoundError:       # rendering it reports the missing record
+        return obj_id, False
+    mine = _inputs_digest(data_root, rec)
     if mine is None or mine != render_inputs(old_data, obj_id):
         return obj_id, False
     meta = json.loads((src / "views.json").read_text())
-    rec = load_record(data_root, obj_id)
     folder = Path(out_root) / "objects" / obj_id
     folder.mkdir(parents=True, exist_ok=True)
     for k in range(len(meta["views"])):      # a hard link where both folders share a disk
@@ -145,12 +152,16 @@ def _reuse_one(args) -> tuple[str, bool]:
     return obj_id, True
 
 
+def _settings_diff(have: dict, want: dict, keys: tuple[str, ...]) -> dict:
+    """The render settings among ``keys`` that differ: key -> (have, want)."""
+    return {k: (have.get(k), want[k]) for k in keys if have.get(k) != want[k]}
+
+
 def _reuse_source(reuse: os.PathLike, want: dict) -> tuple[Path, Path]:
     """The earlier render folder and its dataset, checked against the requested settings."""
     reuse = Path(reuse)
     have = load_render_manifest(reuse)
-    keys = ("format", "render_version", "views", "size", "seed")
-    diff = {k: (have.get(k), want[k]) for k in keys if have.get(k) != want[k]}
+    diff = _settings_diff(have, want, ("format", "render_version", "views", "size", "seed"))
     if diff:
         raise RenderSetError(f"--reuse {reuse} was rendered with other settings {diff} "
                              f"(its, requested): its views cannot stand in for new ones")
@@ -186,8 +197,8 @@ def render_dataset(data_root: os.PathLike, out_root: os.PathLike, views: int = 8
     mpath = out_root / "manifest.json"
     if mpath.exists():
         have = json.loads(mpath.read_text())
-        keys = ("format", "render_version", "data_version", "views", "size", "seed")
-        diff = {k: (have.get(k), want[k]) for k in keys if have.get(k) != want[k]}
+        diff = _settings_diff(have, want, ("format", "render_version", "data_version", "views",
+                                           "size", "seed"))
         if diff:
             raise RenderSetError(f"{out_root} holds renders made with other settings {diff} "
                                  f"(existing, requested); choose a new --out or delete it")
