@@ -72,6 +72,11 @@ def add_training_args(ap: argparse.ArgumentParser) -> None:
                          "decoding (default 1: one regressed token)")
     ap.add_argument("--mode-weight", type=float, metavar="W",
                     help="--art-modes: weight of the cross-entropy on the best mode (default 1)")
+    ap.add_argument("--place-bins", action="store_const", const=True,
+                    help="with --token-frame parent: a head classifies each coordinate of "
+                         "the joint origin (on a face / the centre line of the part's box) "
+                         "and of the box centre (touching or flush with a face of the "
+                         "parent's box, centred) or elsewhere; decoding puts it exactly there")
     ap.add_argument("--seed", type=int)
     ap.add_argument("--threads", type=int)
     ap.add_argument("--no-progress", action="store_true")
@@ -82,7 +87,8 @@ def training_overrides(args: argparse.Namespace, **more) -> dict:
     given = {"max_steps": args.steps, "max_minutes": args.minutes, "batch_size": args.batch_size,
              "lr": args.lr, "warmup_steps": args.warmup, "own_inputs": args.own_inputs,
              "token_frame": args.token_frame, "art_modes": args.art_modes,
-             "w_mode": args.mode_weight, "seed": args.seed, "threads": args.threads, **more}
+             "w_mode": args.mode_weight, "place_bins": args.place_bins, "seed": args.seed,
+             "threads": args.threads, **more}
     return {k: v for k, v in given.items() if v is not None}
 
 

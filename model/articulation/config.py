@@ -54,6 +54,12 @@ class ArticulationConfig:
                                   # takes-all); decoding draws one, so a part whose place is
                                   # ambiguous (next drawer right or below) takes one place
                                   # instead of the average of both
+    place_bins: bool = False      # parent frame only: a head classifies each coordinate of
+                                  # the joint origin (on a face / the centre line of the
+                                  # part's box) and of the box centre (touching or flush with
+                                  # a face of the parent's box, centred) or "elsewhere", and
+                                  # decoding puts it exactly there: a door hinges on an edge,
+                                  # not between two; a handle touches its drawer's front
     predict_z: bool = False       # True = ablation no_shape_prior: regress z directly
     z_dim: int = 768              # only used when predict_z
 
@@ -72,6 +78,7 @@ class ArticulationConfig:
         d.setdefault("plan_head", False)   # checkpoints from before the plan head
         d.setdefault("cond_grid", {})      # ... and before grid position embeddings
         d.setdefault("count_tokens", {})   # ... and before count tokens
+        d.setdefault("place_bins", False)  # ... and before place classes
         return cls(**d)
 
 
@@ -102,6 +109,7 @@ class TrainConfig:
     w_label: float = 1.0          # auxiliary: CE of the nearest-c_s label decision
     w_plan: float = 1.0           # auxiliary: CE of the START plan head (parts per label)
     w_mode: float = 1.0           # art_modes > 1: CE of the articulation mode that fits best
+    w_place: float = 1.0          # place_bins: CE of the origin and centre place classes
     rounds_per_object: int = 4    # decoding rounds drawn per object per step (they share
                                   # one encoded description)
     own_inputs: float = 0.0       # scheduled sampling: share of the objects of a batch whose
@@ -151,6 +159,9 @@ def preset(name: str, ablation: str = "none", **overrides) -> tuple[Articulation
             setattr(train, k, v)
         else:
             raise KeyError(f"unknown config field {k!r}")
+    if net.place_bins and train.token_frame != "parent":
+        raise ValueError("place_bins places parts relative to their parent's box: it needs "
+                         "token_frame 'parent'")
     return net, train
 
 

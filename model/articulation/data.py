@@ -19,7 +19,7 @@ import torch
 from model.core.objects import TOKEN_DIM
 from model.data import format as fmt
 
-from .frames import to_frame
+from .frames import PLACE_CLASSES, place_classes, to_frame
 from .network import Targets, TreeBatch
 
 log = logging.getLogger(__name__)
@@ -62,6 +62,8 @@ class TreeItem:
     geo: np.ndarray            # (K, C, N) P_gt or (K, Z) normalised z
     labels: list[str]
     texts: list[list[str]]     # texts per description length (lengths that exist)
+    place: Optional[np.ndarray] = None    # (K, 6) place classes (parent frame only;
+                                          # model.articulation.frames.place_classes)
 
     @property
     def num_rounds(self) -> int:
@@ -83,15 +85,17 @@ def make_item(rec: fmt.ObjectRecord, tok_mean: np.ndarray, tok_std: np.ndarray,
         depth[n] = 0 if p < 0 else depth[p] + 1
     texts = [list(rec.descriptions[k]) for k in fmt.DESCRIPTION_LENGTHS
              if rec.descriptions.get(k)]
+    rel = to_frame(toks[order], parents, frame)
     return TreeItem(
         id=rec.id, category=rec.category,
-        tokens=((to_frame(toks[order], parents, frame) - tok_mean) / tok_std).astype(np.float32),
+        tokens=((rel - tok_mean) / tok_std).astype(np.float32),
         jtypes=np.asarray(rec.joint_types, dtype=np.int64)[order],
         parents=parents.astype(np.int64), depth=depth,
         rounds=np.array([rounds[i] for i in order], dtype=np.int64),
         cs=np.asarray(cs, dtype=np.float32)[order], geo=np.asarray(geo, dtype=np.float32)[order],
         label_idx=np.asarray(label_idx, dtype=np.int64)[order],
-        labels=[rec.labels[i] for i in order], texts=texts)
+        labels=[rec.labels[i] for i in order], texts=texts,
+        place=place_classes(rel) if frame == "parent" else None)
 
 
 def round_sample(item: TreeItem, k: int) -> dict:
@@ -129,6 +133,7 @@ def collate(samples: list[dict], geo_shape: tuple[int, ...],
     ctok = np.zeros((B, N, TOKEN_DIM), np.float32)
     cjt = np.zeros((B, N), np.int64)
     clab = np.full((B, N), -1, np.int64)
+    cplace = np.repeat(np.array(PLACE_CLASSES) - 1, 3)[None, None].repeat(B, 0).repeat(N, 1)
     plan = np.zeros((B, max(len(count_labels or []), 1)), np.int64)
     ccs = np.zeros((B, N, cs_dim), np.float32)
     cgeo = np.zeros((B, N) + tuple(geo_shape), np.float32)
@@ -153,6 +158,8 @@ def collate(samples: list[dict], geo_shape: tuple[int, ...],
         ctok[b, sel] = it.tokens[t[sel]]
         cjt[b, sel] = it.jtypes[t[sel]]
         clab[b, sel] = it.label_idx[t[sel]]
+        if it.place is not None:
+            cplace[b, sel] = it.place[t[sel]]
         ccs[b, sel] = it.cs[t[sel]]
         cgeo[b, sel] = it.geo[t[sel]]
     T = torch.from_numpy
@@ -161,7 +168,8 @@ def collate(samples: list[dict], geo_shape: tuple[int, ...],
     targets = Targets(T(has), T(ctok), T(cjt), T(ccs),
                       child_P=None if is_z else T(cgeo), child_z=T(cgeo) if is_z else None,
                       child_label=T(clab) if label_cs is not None else None, label_cs=label_cs,
-                      plan_counts=T(plan) if count_labels else None)
+                      plan_counts=T(plan) if count_labels else None,
+                      child_place=T(cplace) if samples[0]["item"].place is not None else None)
     return batch, targets
 
 

@@ -140,13 +140,20 @@ def _rounds(am: "ArticulationModel", rows, gens, memory, modality, max_rounds, m
                                     cond_index=torch.tensor(active))
             finally:
                 am.net.eval()
-            out.update({k: sampled[k] for k in ("art", "art_modes", "art_logits") if k in sampled})
+            out.update({k: sampled[k] for k in ("art", "art_raw", "art_modes", "art_logits")
+                        if k in sampled})
         if "art_logits" in out:          # one candidate token per node, drawn by its probability
             out["art"] = torch.stack([
                 torch.stack([out["art_modes"][b, t, _draw_choice(out["art_logits"][b, t].float(),
                                                                  temperature, gens[i])]
                              for t in range(out["art_logits"].shape[1])])
                 for b, i in enumerate(active)])
+        if "origin_logits" in out:       # origins on faces / centre lines, boxes on faces
+            raw = out["art"] if "art_logits" in out else out["art_raw"]
+            out["art"] = am.net.snap(raw, torch.stack([am.net.place_classes(
+                {k: out[k][b] for k in ("origin_logits", "centre_logits")},
+                lambda l, i=i: _draw_classes(l.float(), temperature, gens[i]))
+                for b, i in enumerate(active)]))
         for b, i in enumerate(active):
             if "plan" in out and rows[i]["plan_logits"] is None:
                 rows[i]["plan_logits"] = out["plan"][b].float().numpy().copy()
@@ -218,6 +225,15 @@ def _draw_choice(logits: torch.Tensor, temperature: float, gen: torch.Generator)
         probs = torch.softmax(logits / temperature, -1)
         return int(torch.multinomial(probs, 1, generator=gen))
     return int(logits.argmax())
+
+
+def _draw_classes(logits: torch.Tensor, temperature: float, gen: torch.Generator
+                  ) -> torch.Tensor:
+    """(..., C) logits -> (...) indices, each drawn as ``_draw_choice`` draws one."""
+    if temperature <= 0:
+        return logits.argmax(-1)
+    probs = torch.softmax(logits / temperature, -1).reshape(-1, logits.shape[-1])
+    return torch.multinomial(probs, 1, generator=gen).view(logits.shape[:-1])
 
 
 def _sample_label(am: "ArticulationModel", cs_raw: torch.Tensor, cat: Optional[str],

@@ -25,6 +25,17 @@ import numpy as np
 FRAMES = ("absolute", "parent")
 MIN_SIZE = 1e-4                       # metres
 LOG_RANGE = (-12.0, 4.0)              # log size ratios read back are clipped to this
+# place classes (ArticulationConfig.place_bins), per axis of a part in the parent frame:
+# its joint origin lies on one face of its own box, on the box's centre line, on the other
+# face or elsewhere; its box lies outside the parent's - face touching it, flush inside it,
+# centred, flush inside the + face, outside it touching, or elsewhere
+ORIGIN_GRID = (-0.5, 0.0, 0.5)        # origin - centre, in the part's box sizes
+ORIGIN_TOL = 0.02
+CENTRE_FACE = (-0.5, -0.5, 0.0, 0.5, 0.5)   # centre - parent centre, in parent box sizes, is
+CENTRE_SIDE = (-1.0, 1.0, 0.0, -1.0, 1.0)   # face + side * half the part's size over the parent's
+CENTRE_TOL = 0.005
+PLACE_CLASSES = (len(ORIGIN_GRID) + 1, len(CENTRE_FACE) + 1)   # classes per origin / centre
+                                                                # axis; the last is "elsewhere"
 
 
 def check_frame(frame: str) -> str:
@@ -91,5 +102,21 @@ def from_frame(tokens: np.ndarray, parents: Sequence[int], frame: str) -> np.nda
     return out
 
 
-__all__ = ["FRAMES", "MIN_SIZE", "check_frame", "token_to_frame", "token_from_frame", "to_frame",
-           "from_frame"]
+def place_classes(rel: np.ndarray) -> np.ndarray:
+    """(..., 16) tokens in the parent frame -> (..., 6) place classes: 3 of the joint origin
+    (ORIGIN_GRID index), 3 of the box centre (CENTRE_FACE index); the last class of each
+    (PLACE_CLASSES - 1) where no value is within its tolerance."""
+    rel = np.asarray(rel, dtype=np.float64)
+    half = np.exp(np.clip(rel[..., 0:3], *LOG_RANGE))[..., None] / 2          # (..., 3, 1)
+    origin = np.asarray(ORIGIN_GRID) + 0 * half
+    centre = np.asarray(CENTRE_FACE) + np.asarray(CENTRE_SIDE) * half
+    out = []
+    for vals, x, tol in ((origin, rel[..., 6:9], ORIGIN_TOL), (centre, rel[..., 3:6], CENTRE_TOL)):
+        d = np.abs(vals - x[..., None])
+        out.append(np.where(d.min(-1) <= tol, d.argmin(-1), vals.shape[-1]))
+    return np.concatenate(out, -1).astype(np.int64)
+
+
+__all__ = ["CENTRE_FACE", "CENTRE_SIDE", "CENTRE_TOL", "FRAMES", "LOG_RANGE", "MIN_SIZE",
+           "ORIGIN_GRID", "ORIGIN_TOL", "PLACE_CLASSES", "check_frame", "place_classes",
+           "token_to_frame", "token_from_frame", "to_frame", "from_frame"]

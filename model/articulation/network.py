@@ -19,6 +19,7 @@ import torch.nn as nn
 import torch.nn.functional as F
 
 from .config import NUM_JOINT_TYPES, ArticulationConfig
+from .frames import CENTRE_FACE, CENTRE_SIDE, LOG_RANGE, ORIGIN_GRID, PLACE_CLASSES
 
 MODE_EPS = 0.05   # art_modes > 1: share of the articulation loss spread over every mode
 
@@ -71,6 +72,8 @@ class Targets:
     label_cs: Optional[torch.Tensor] = None      # (T, 64) c_s of every training label
     plan_counts: Optional[torch.Tensor] = None   # (B, len(count_labels)) parts per label in
                                                  # the whole object (auxiliary plan head)
+    child_place: Optional[torch.Tensor] = None   # (B, N, 6) long: place classes, 3 of the
+                                                 # origin, 3 of the centre (place_bins)
 
 
 def _mlp(d_in: int, d_hidden: int, d_out: int) -> nn.Sequential:
@@ -265,6 +268,46 @@ class ArticulationTransformer(nn.Module):
         # (trains the cross-attention to read counts from the condition; not used to decode)
         self.head_plan = (nn.Linear(d, len(cfg.count_labels) * (cfg.plan_max_count + 1))
                           if cfg.plan_head and cfg.count_labels else None)
+        # place_bins: per axis, is the child's joint origin on a face / the centre line of its
+        # box, and its box touching / flush with a face of its parent's or centred in it?
+        # (a regressed hinge averages the left and the right edge into the middle)
+        self.head_place = nn.Linear(d, 3 * sum(PLACE_CLASSES)) if cfg.place_bins else None
+        # the token statistics (mean, std), to place in the normalised space (set_token_norm)
+        self.register_buffer("tok_norm", torch.zeros(2, cfg.token_dim) if cfg.place_bins
+                             else None)
+
+    def set_token_norm(self, tok_mean, tok_std) -> None:
+        """Store the run's token statistics (place_bins snaps in normalised token space)."""
+        self.tok_norm.copy_(torch.stack([torch.as_tensor(tok_mean, dtype=torch.float32),
+                                         torch.as_tensor(tok_std, dtype=torch.float32)]))
+
+    def place_logits(self, x: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """(B, N, d) -> origin (B, N, 3, 4) and centre (B, N, 3, 6) class logits."""
+        origin, centre = self.head_place(x).split([3 * n for n in PLACE_CLASSES], -1)
+        return (origin.unflatten(-1, (3, PLACE_CLASSES[0])),
+                centre.unflatten(-1, (3, PLACE_CLASSES[1])))
+
+    def snap(self, art: torch.Tensor, classes: torch.Tensor) -> torch.Tensor:
+        """art (..., 16) normalised tokens (parent frame) with each origin and centre
+        coordinate whose class (..., 6) names a place put exactly there; the last class of a
+        coordinate ("elsewhere") keeps the regressed value."""
+        mean, std = self.tok_norm[0], self.tok_norm[1]
+        raw = art.float() * std + mean
+        half = torch.exp(raw[..., 0:3].clamp(*LOG_RANGE)).unsqueeze(-1) / 2        # (..., 3, 1)
+        face, side = raw.new_tensor(CENTRE_FACE), raw.new_tensor(CENTRE_SIDE)
+        out = raw.clone()
+        origin = raw.new_tensor(ORIGIN_GRID) + 0 * half                          # (..., 3, 3)
+        for cls, sl, vals in ((classes[..., :3], slice(6, 9), origin),
+                              (classes[..., 3:], slice(3, 6), face + side * half)):
+            n = vals.shape[-1]
+            val = vals.gather(-1, cls.clamp_max(n - 1).unsqueeze(-1)).squeeze(-1)
+            out[..., sl] = torch.where(cls < n, val, raw[..., sl])
+        return ((out - mean) / std).to(art.dtype)
+
+    def place_classes(self, out: dict, pick) -> torch.Tensor:
+        """(B, N, 6) place classes from a forward's logits; ``pick`` maps (..., C) logits to
+        (...) indices (argmax, or a draw)."""
+        return torch.cat([pick(out["origin_logits"]), pick(out["centre_logits"])], -1)
 
     def child_counts(self, batch: TreeBatch) -> torch.Tensor:
         """How many children each token already has, in total and per label: (B, N, 1+T)/4.
@@ -333,9 +376,14 @@ class ArticulationTransformer(nn.Module):
         if self.head_plan is not None:
             out["plan"] = self.head_plan(x[:, 0]).view(x.shape[0], len(self.cfg.count_labels),
                                                        self.cfg.plan_max_count + 1)
-        if targets is None:
-            return out, None
-        return out, self.losses(out, batch.mask, targets, weights or {})
+        if self.head_place is not None:
+            out["origin_logits"], out["centre_logits"] = self.place_logits(x)
+        losses = None if targets is None else self.losses(out, batch.mask, targets,
+                                                          weights or {})
+        if self.head_place is not None:      # after the losses: they train the raw regression
+            out["art_raw"] = out["art"]
+            out["art"] = self.snap(out["art"], self.place_classes(out, lambda l: l.argmax(-1)))
+        return out, losses
 
     def articulation(self, x: torch.Tensor) -> dict:
         """art (B, N, 16); with art_modes K > 1 also art_modes (B, N, K, 16) and art_logits
@@ -372,6 +420,11 @@ class ArticulationTransformer(nn.Module):
             L["art"] = (mix * mc).sum() / nc
             ce = F.cross_entropy(out["art_logits"].transpose(1, 2), best, reduction="none")
             L["mode"] = (ce * mc).sum() / nc
+        if t.child_place is not None and "origin_logits" in out:
+            ce = [F.cross_entropy(out[k].permute(0, 3, 1, 2), cls, reduction="none")
+                  for k, cls in (("origin_logits", t.child_place[..., :3]),
+                                 ("centre_logits", t.child_place[..., 3:]))]
+            L["place"] = ((torch.cat(ce, -1).mean(-1)) * mc).sum() / nc
         if t.plan_counts is not None and "plan" in out:
             L["plan"] = F.cross_entropy(out["plan"].transpose(1, 2),
                                         t.plan_counts.clamp(0, self.cfg.plan_max_count))
@@ -392,6 +445,6 @@ class ArticulationTransformer(nn.Module):
                    "jt": w.get("w_jt", 1.0), "cs": w.get("w_cs", 5.0),
                    "P": w.get("w_p", 2.0), "z": w.get("w_z", 1.0),
                    "label": w.get("w_label", 1.0), "plan": w.get("w_plan", 1.0),
-                   "mode": w.get("w_mode", 1.0)}
+                   "mode": w.get("w_mode", 1.0), "place": w.get("w_place", 1.0)}
         L["total"] = sum(weights[k] * v for k, v in L.items())
         return L

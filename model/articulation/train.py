@@ -361,7 +361,7 @@ def _start_state(rc: RunConfig, net: ArticulationTransformer, opt, last: Path, e
     if not (rc.resume and last.exists()):
         return None
     ck = read_checkpoint(last, prior=prior)
-    if ck["config"] != asdict(net.cfg):
+    if ArticulationConfig.from_dict(ck["config"]) != net.cfg:   # older fields defaulted
         raise ValueError(f"{last} was trained with another config; drop --resume or use "
                          f"another --out")
     had = [(x["data_version"], x.get("wordings", "all")) for x in ck.get("extra_train", [])]
@@ -401,6 +401,8 @@ def train(rc: RunConfig) -> Path:
                             betas=(0.9, 0.98))
     prior = getattr(tg, "fingerprint", "")
     state = _start_state(rc, net, opt, out / "last.pt", extra_info, prior)
+    if cfg.place_bins:
+        net.set_token_norm(data.stats["tok_mean"], data.stats["tok_std"])
     if state is not None:
         rng = np.random.default_rng(tc.seed + state.step)
     order = rng                                  # one stream for one process (as before DDP)

@@ -366,9 +366,10 @@ def _prepare(rc: ImageRunConfig, out: Path):
 
 def _resume_image(last: Path, net, encoder, opt, prior: str):
     from model.articulation.checkpoint import read_checkpoint
+    from model.articulation.config import ArticulationConfig
     from model.core.training import LoopState
     ck = read_checkpoint(last, prior=prior)
-    if ck["config"] != asdict(net.cfg):
+    if ArticulationConfig.from_dict(ck["config"]) != net.cfg:   # older fields defaulted
         raise ValueError(f"{last} was trained with another config; drop --resume or use "
                          f"another --out")
     net.load_state_dict(ck["state_dict"])
@@ -403,6 +404,8 @@ def train_image(rc: ImageRunConfig) -> Path:
         dist.barrier()
     cfg, encoder, data, tr, conds = p["cfg"], p["encoder"], p["data"], p["tr"], p["conds"]
     net = _image_network(cfg, p["init"], encoder, tc.seed)
+    if cfg.place_bins:
+        net.set_token_norm(data.stats["tok_mean"], data.stats["tok_std"])
     groups = [{"params": list(net.parameters()), "lr_mult": 1.0}]
     tail = encoder.tail_parameters()
     if tail:
