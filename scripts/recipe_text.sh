@@ -8,9 +8,10 @@
 #   STAGE=text bash scripts/recipe_text.sh      # one stage: text | text-eval | render | image | image-eval
 #
 # Settings (environment variables, defaults below): DATA, PRIOR, SDF, PRESET, TEXT_STEPS,
-# IMAGE_STEPS, TRUNK, FRAME, MODES, SEED, THREADS, CHUNK_MIN, RUNS, INIT, LR. INIT starts the
-# text model from a finished checkpoint (a fine-tune, e.g. onto another shape prior's targets).
-# FRAME and MODES are the token frame and articulation modes (docs/results/layout_training.md).
+# IMAGE_STEPS, TRUNK, FRAME, MODES, PLACE, SEED, THREADS, CHUNK_MIN, RUNS, INIT, LR. INIT starts
+# the text model from a finished checkpoint (a fine-tune, e.g. onto another shape prior's
+# targets). FRAME, MODES and PLACE are the token frame, the articulation modes and the place
+# classes (PLACE=1: --place-bins; docs/results/layout_training.md).
 # Each run folder gets RECIPE.md with the command lines, seed, data version, device and wall
 # time of every chunk.
 # Nothing is copied into model/weights: the fp16 files land in RUNS, to be shipped only when
@@ -34,6 +35,7 @@ IMAGE_STEPS=${IMAGE_STEPS:-12000}
 TRUNK=${TRUNK:-model/weights/image_small.pt}   # fine-tuned encoder blocks 4-14 (its trunk)
 FRAME=${FRAME:-parent}
 MODES=${MODES:-4}
+PLACE=${PLACE:-0}
 SEED=${SEED:-0}
 THREADS=${THREADS:-2}
 CHUNK_MIN=${CHUNK_MIN:-120}     # training minutes per invocation; + PREP_MIN of loading <= 2.5 h
@@ -61,6 +63,7 @@ source scripts/recipe_lib.sh
 common=(--prior "$PRIOR" --sdf "$SDF" --lr "$LR" --own-inputs 0.5 --token-frame "$FRAME"
         --art-modes "$MODES" --minutes 0)
 if [ -n "$INIT" ]; then common+=(--init "$INIT"); fi
+if [ "$PLACE" = 1 ]; then common+=(--place-bins); fi
 
 stage_text() {
   train_chunks transformer "$TEXT_RUN" "$TEXT_STEPS" "${common[@]}"
