@@ -142,15 +142,20 @@ def test_prior_fingerprint_refuses_a_checkpoint_of_another_prior(tmp_path):
 
 
 def test_shipped_files_load_weights_only_with_the_shipped_prior():
-    """The shipped files (format 1) through the one loader: their transformer and image model
-    were trained against the shipped prior, whose fingerprint is LEGACY_PRIOR."""
+    """The shipped files through the one loader: the transformer was trained against the
+    shipped prior; the image model (format 1) against the one in image_prior/, whose
+    fingerprint is LEGACY_PRIOR. Each is refused beside the other's prior."""
     from pathlib import Path
     w = Path(ckpt_mod.__file__).resolve().parents[1] / "weights"
     fp = ckpt_mod.shape_prior_fingerprint(w / "sdf_small.pt", w / "prior_small.pt")
-    assert fp == ckpt_mod.LEGACY_PRIOR
-    for name in ("transformer_small.pt", "image_small.pt"):
-        ck = read_checkpoint(w / name, "articulation", prior=fp)
+    old = ckpt_mod.shape_prior_fingerprint(w / "image_prior" / "sdf_small.pt",
+                                           w / "image_prior" / "prior_small.pt")
+    assert old == ckpt_mod.LEGACY_PRIOR != fp
+    for name, prior, other in (("transformer_small.pt", fp, old), ("image_small.pt", old, fp)):
+        ck = read_checkpoint(w / name, "articulation", prior=prior)
         assert CheckpointMeta.of(ck).command.startswith("artformer train")
+        with pytest.raises(CheckpointError):
+            read_checkpoint(w / name, "articulation", prior=other)
     # the image entries read typed, and written back as they were
     from model.imaging.model import ImageExtras
     ex = ImageExtras.of(ck)

@@ -157,7 +157,7 @@ def test_generator_samples_layouts_when_a_structure_is_forced_only():
 def test_sample_choices_draws_labels_and_plan_counts_from_the_seed(am):
     """sample_choices: off (default) is the plain decoding; at temperature 0 it draws nothing;
     on, the plan counts are draws from the plan head (a vague prompt gets several counts)."""
-    cond, mask = am.encode_text(["a cabinet"] * 8)
+    cond, mask = am.encode_text(["a cabinet with drawers"] * 8)   # the count left open
     kw = dict(seed=0, follow_plan=True)
     plain = am.decode(cond, mask, temperature=0.3, **kw)
     default = am.decode(cond, mask, temperature=0.3, sample_choices=False, **kw)

