@@ -356,6 +356,24 @@ def test_a_door_stated_at_the_bottom_below_drawers_reaches_down_the_front():
     assert door.bbox_center[2] - door.bbox_size[2] / 2 < 0.1
 
 
+def test_a_door_banded_below_a_drawer_does_not_touch_it():
+    """Banded fronts are GAP apart: a door whose top touched the drawer above it carried the
+    drawer's weight in MuJoCo, and friction held it shut."""
+    from model.refine.layout import GAP
+    obj = ArticulatedObject(category="StorageFurniture", name="bedside", parts=[
+        _part("body_0", "body", -1, (0.45, 0.55, 0.5), (0, 0, 0.25)),
+        _part("door_0", "door", 0, (0.02, 0.5, 0.3), (0.22, 0.0, 0.3),
+              Joint(JointType.REVOLUTE, (0.23, 0.25, 0.3), (0, 0, 1), r_range=(0, 1.5))),
+        _drawer(0, (0.0, 0.0, 0.2), (0.42, 0.5, 0.2)),
+    ])
+    _layout(obj, "a small bedside table with one drawer on top and a door underneath")
+    door, drawer = obj.parts[1], obj.parts[2]
+    assert drawer.bbox_center[2] > door.bbox_center[2]
+    gap = (drawer.bbox_center[2] - drawer.bbox_size[2] / 2) \
+        - (door.bbox_center[2] + door.bbox_size[2] / 2)
+    assert gap >= GAP - 1e-6
+
+
 def test_a_drawer_decoded_on_the_side_is_turned_onto_the_front_to_be_banded():
     """"one drawer at the top and two doors below it", the drawer decoded on the cabinet's
     left side (its depth along the front, sliding sideways): it is turned onto the front,

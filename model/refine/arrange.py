@@ -31,8 +31,8 @@ import numpy as np
 from model.core import ArticulatedObject
 from model.data.expected_structure import ARRANGEMENT_KEYS
 
-from .layout import (CLEAR, ON_FACE, PANELS, SIDE_HINGED, _lohi, _move_subtree, _union, face_of,
-                     frame_of)
+from .layout import (CLEAR, GAP, ON_FACE, PANELS, SIDE_HINGED, _lohi, _move_subtree, _union,
+                     face_of, frame_of)
 
 GAP_SHARE = 0.06       # of a cell's side, between neighbouring cells
 KEY = 0.03             # m: a keypad key's side at most (the data's safe keys: 2.2 cm at most)
@@ -296,8 +296,8 @@ def _bands(obj: ArticulatedObject, low: list[int], high: list[int], ax: int,
     banded = _control_band(obj, ctrl[0], low, high, ax, lo, hi, stack) if len(ctrl) == 1 \
         else None
     (alo, ahi), (blo, bhi) = _cspan(obj, low, ax), _cspan(obj, high, ax)
-    if banded is None:
-        scale = (hi - lo) / max((ahi - alo) + (bhi - blo), 1e-9)
+    if banded is None:            # the two bands GAP apart: touching fronts would rub
+        scale = (hi - lo - GAP) / max((ahi - alo) + (bhi - blo), 1e-9)
         banded = ({id(low): scale, id(high): scale}, {id(low): lo,
                                                      id(high): hi - (bhi - blo) * scale})
     scales, bases = banded
