@@ -20,6 +20,11 @@ def _drawer(n, centre, size=(0.4, 0.8, 0.12)):
                  Joint(JointType.PRISMATIC, centre, (1, 0, 0), t_range=(0, 0.3)))
 
 
+def _door(n, size, centre, hinge, axis=(0, 0, 1), r_range=(0, 1.6)):
+    return _part(f"door_{n}", "door", 0, size, centre,
+                 Joint(JointType.REVOLUTE, hinge, axis, r_range=r_range))
+
+
 def _structure(obj):
     return [(p.label, p.parent, p.joint.type) for p in obj.parts]
 
@@ -77,9 +82,7 @@ def test_six_drawers_decoded_in_one_column_end_up_in_two_columns():
 def _door_and_drawers(door_y, drawer_y):
     return ArticulatedObject(category="StorageFurniture", name="kitchen", parts=[
         _part("body_0", "body", -1, (0.5, 1.0, 0.9), (0, 0, 0.45)),
-        _part("door_0", "door", 0, (0.02, 0.45, 0.8), (0.24, door_y, 0.45),
-              Joint(JointType.REVOLUTE, (0.25, door_y + 0.22, 0.45), (0, 0, 1),
-                    r_range=(0, 1.6))),
+        _door(0, (0.02, 0.45, 0.8), (0.24, door_y, 0.45), (0.25, door_y + 0.22, 0.45)),
         _drawer(0, (0.05, drawer_y, 0.75), (0.4, 0.45, 0.2)),
         _drawer(1, (0.05, drawer_y, 0.45), (0.4, 0.45, 0.2)),
         _drawer(2, (0.05, drawer_y, 0.15), (0.4, 0.45, 0.2)),
@@ -106,15 +109,14 @@ def test_drawers_stated_above_the_doors_swap_top_and_bottom_but_an_oven_does_not
     cab = ArticulatedObject(category="StorageFurniture", name="base", parts=[
         _part("body_0", "body", -1, (0.5, 1.0, 0.9), (0, 0, 0.45)),
         _drawer(0, (0.05, 0.0, 0.12), (0.4, 0.9, 0.18)),
-        _part("door_0", "door", 0, (0.02, 0.9, 0.55), (0.24, 0.0, 0.6),
-              Joint(JointType.REVOLUTE, (0.25, 0.45, 0.6), (0, 0, 1), r_range=(0, 1.6))),
+        _door(0, (0.02, 0.9, 0.55), (0.24, 0.0, 0.6), (0.25, 0.45, 0.6)),
     ])
     _layout(cab, "a kitchen base unit with one drawer above a door")
     assert is_above(spatial_summary(cab), "drawer", "door")
     oven = ArticulatedObject(category="Oven", name="oven", parts=[
         _part("body_0", "body", -1, (0.5, 0.6, 0.6), (0, 0, 0.3)),
-        _part("door_0", "door", 0, (0.03, 0.5, 0.3), (0.235, 0, 0.45),
-              Joint(JointType.REVOLUTE, (0.25, 0, 0.3), (0, 1, 0), r_range=(0, 1.4))),
+        _door(0, (0.03, 0.5, 0.3), (0.235, 0, 0.45), (0.25, 0, 0.3), axis=(0, 1, 0),
+              r_range=(0, 1.4)),
         _part("knob_0", "knob", 0, (0.03, 0.05, 0.05), (0.265, 0.1, 0.1),
               Joint(JointType.CONTINUOUS, (0.265, 0.1, 0.1), (1, 0, 0))),
     ])
@@ -154,8 +156,7 @@ def test_a_door_stated_on_the_left_between_drawer_columns_gets_the_left_band():
     drawers (two columns kept) the right band."""
     obj = ArticulatedObject(category="StorageFurniture", name="kitchen", parts=[
         _part("body_0", "body", -1, (0.5, 1.2, 0.9), (0, 0, 0.45)),
-        _part("door_0", "door", 0, (0.02, 0.4, 0.8), (0.24, 0.0, 0.45),
-              Joint(JointType.REVOLUTE, (0.25, -0.2, 0.45), (0, 0, 1), r_range=(0, 1.6))),
+        _door(0, (0.02, 0.4, 0.8), (0.24, 0.0, 0.45), (0.25, -0.2, 0.45)),
         _drawer(0, (0.05, -0.4, 0.6), (0.4, 0.35, 0.25)),
         _drawer(1, (0.05, 0.4, 0.6), (0.4, 0.35, 0.25)),
         _drawer(2, (0.05, 0.4, 0.3), (0.4, 0.35, 0.25)),
@@ -175,8 +176,7 @@ def test_a_door_beside_a_drawer_stack_it_was_decoded_under_gets_the_stacks_heigh
     front's tiling would otherwise grow both back across the whole width)."""
     obj = ArticulatedObject(category="StorageFurniture", name="bedside", parts=[
         _part("body_0", "body", -1, (0.5, 1.0, 1.0), (0, 0, 0.5)),
-        _part("door_0", "door", 0, (0.02, 0.95, 0.6), (0.24, 0.0, 0.35),
-              Joint(JointType.REVOLUTE, (0.25, -0.47, 0.35), (0, 0, 1), r_range=(0, 1.6))),
+        _door(0, (0.02, 0.95, 0.6), (0.24, 0.0, 0.35), (0.25, -0.47, 0.35)),
         _drawer(0, (0.05, 0.0, 0.9), (0.4, 0.95, 0.15)),
         _drawer(1, (0.05, 0.0, 0.75), (0.4, 0.95, 0.15)),
     ])
@@ -223,8 +223,7 @@ def test_a_stated_grid_gathers_doors_decoded_on_the_side_onto_the_front():
 
 def _safe_door_with_keypad(handle_z):
     parts = [_part("body_0", "body", -1, (0.36, 0.4, 0.5), (0, 0, 0.26)),
-             _part("door_0", "door", 0, (0.03, 0.32, 0.24), (0.2, 0.0, 0.28),
-                   Joint(JointType.REVOLUTE, (0.21, -0.16, 0.28), (0, 0, 1), r_range=(0, 1.6)))]
+             _door(0, (0.03, 0.32, 0.24), (0.2, 0.0, 0.28), (0.21, -0.16, 0.28))]
     for n in range(9):
         c = (0.22, -0.06 + 0.012 * n, 0.2 + 0.01 * n)
         parts.append(_part(f"button_{n}", "button", 1, (0.01, 0.03, 0.03), c,
@@ -261,8 +260,8 @@ def test_a_keypads_keys_are_no_bigger_than_the_datas():
 
 def _range(knobs):
     parts = [_part("body_0", "body", -1, (0.5, 0.7, 0.8), (0, 0, 0.4)),
-             _part("door_0", "door", 0, (0.04, 0.66, 0.56), (0.26, 0.0, 0.36),
-                   Joint(JointType.REVOLUTE, (0.27, 0.0, 0.08), (0, 1, 0), r_range=(0, 1.4)))]
+             _door(0, (0.04, 0.66, 0.56), (0.26, 0.0, 0.36), (0.27, 0.0, 0.08), axis=(0, 1, 0),
+                   r_range=(0, 1.4))]
     for n, c in enumerate(knobs):
         parts.append(_part(f"knob_{n}", "knob", 0, (0.03, 0.05, 0.05), c,
                            Joint(JointType.CONTINUOUS, c, (1, 0, 0))))
@@ -343,8 +342,7 @@ def test_a_door_stated_at_the_bottom_below_drawers_reaches_down_the_front():
     ends near the bottom instead of floating in the middle of an empty front."""
     obj = ArticulatedObject(category="StorageFurniture", name="filing", parts=[
         _part("body_0", "body", -1, (0.5, 0.9, 0.95), (0, 0, 0.49)),
-        _part("door_0", "door", 0, (0.01, 0.8, 0.33), (0.23, 0.0, 0.54),
-              Joint(JointType.REVOLUTE, (0.24, -0.4, 0.54), (0, 0, 1), r_range=(0, 1.6))),
+        _door(0, (0.01, 0.8, 0.33), (0.23, 0.0, 0.54), (0.24, -0.4, 0.54)),
         _drawer(0, (0.05, 0.1, 0.65), (0.44, 0.72, 0.33)),
         _drawer(1, (0.03, 0.0, 0.63), (0.36, 0.72, 0.32)),
     ])
@@ -362,8 +360,7 @@ def test_a_door_banded_below_a_drawer_does_not_touch_it():
     from model.refine.layout import GAP
     obj = ArticulatedObject(category="StorageFurniture", name="bedside", parts=[
         _part("body_0", "body", -1, (0.45, 0.55, 0.5), (0, 0, 0.25)),
-        _part("door_0", "door", 0, (0.02, 0.5, 0.3), (0.22, 0.0, 0.3),
-              Joint(JointType.REVOLUTE, (0.23, 0.25, 0.3), (0, 0, 1), r_range=(0, 1.5))),
+        _door(0, (0.02, 0.5, 0.3), (0.22, 0.0, 0.3), (0.23, 0.25, 0.3), r_range=(0, 1.5)),
         _drawer(0, (0.0, 0.0, 0.2), (0.42, 0.5, 0.2)),
     ])
     _layout(obj, "a small bedside table with one drawer on top and a door underneath")
@@ -380,10 +377,8 @@ def test_a_drawer_decoded_on_the_side_is_turned_onto_the_front_to_be_banded():
     slides out of it, and sits above the doors."""
     obj = ArticulatedObject(category="StorageFurniture", name="kitchen", parts=[
         _part("body_0", "body", -1, (0.5, 0.9, 1.0), (0, 0, 0.5)),
-        _part("door_0", "door", 0, (0.02, 0.85, 0.35), (0.24, 0.0, 0.3),
-              Joint(JointType.REVOLUTE, (0.25, -0.42, 0.3), (0, 0, 1), r_range=(0, 1.6))),
-        _part("door_1", "door", 0, (0.02, 0.85, 0.35), (0.24, 0.0, 0.7),
-              Joint(JointType.REVOLUTE, (0.25, -0.42, 0.7), (0, 0, 1), r_range=(0, 1.6))),
+        _door(0, (0.02, 0.85, 0.35), (0.24, 0.0, 0.3), (0.25, -0.42, 0.3)),
+        _door(1, (0.02, 0.85, 0.35), (0.24, 0.0, 0.7), (0.25, -0.42, 0.7)),
         _part("drawer_0", "drawer", 0, (0.7, 0.4, 0.3), (0.0, -0.25, 0.5),
               Joint(JointType.PRISMATIC, (0.0, -0.25, 0.5), (0, -1, 0), t_range=(0, 0.3))),
     ])
@@ -402,8 +397,7 @@ def test_a_drawer_stated_in_a_corner_goes_above_and_then_to_its_side():
     moves left within it (a second, side-by-side band would stretch it back down)."""
     obj = ArticulatedObject(category="WashingMachine", name="washer", parts=[
         _part("body_0", "body", -1, (0.6, 0.6, 0.9), (0, 0, 0.45)),
-        _part("door_0", "door", 0, (0.03, 0.45, 0.45), (0.3, 0.0, 0.45),
-              Joint(JointType.REVOLUTE, (0.31, 0.22, 0.45), (0, 0, 1), r_range=(0, 1.6))),
+        _door(0, (0.03, 0.45, 0.45), (0.3, 0.0, 0.45), (0.31, 0.22, 0.45)),
         _drawer(0, (0.15, 0.1, 0.5), (0.3, 0.2, 0.12)),
     ])
     _layout(obj, "a washing machine with a detergent drawer at the top left")
