@@ -102,14 +102,21 @@ def from_frame(tokens: np.ndarray, parents: Sequence[int], frame: str) -> np.nda
     return out
 
 
+def place_values(half, asarray=np.asarray):
+    """The places a class names, given ``half`` (..., 3, 1), half the part's size over its
+    parent's per axis: origin values (..., 3, 3) in the part's box sizes from its centre,
+    centre values (..., 3, 5) in parent box sizes from the parent's centre. ``asarray``
+    makes the constants the type of ``half`` (``np.asarray``, or a tensor's ``new_tensor``)."""
+    return (asarray(ORIGIN_GRID) + 0 * half,
+            asarray(CENTRE_FACE) + asarray(CENTRE_SIDE) * half)
+
+
 def place_classes(rel: np.ndarray) -> np.ndarray:
     """(..., 16) tokens in the parent frame -> (..., 6) place classes: 3 of the joint origin
     (ORIGIN_GRID index), 3 of the box centre (CENTRE_FACE index); the last class of each
     (PLACE_CLASSES - 1) where no value is within its tolerance."""
     rel = np.asarray(rel, dtype=np.float64)
-    half = np.exp(np.clip(rel[..., 0:3], *LOG_RANGE))[..., None] / 2          # (..., 3, 1)
-    origin = np.asarray(ORIGIN_GRID) + 0 * half
-    centre = np.asarray(CENTRE_FACE) + np.asarray(CENTRE_SIDE) * half
+    origin, centre = place_values(np.exp(np.clip(rel[..., 0:3], *LOG_RANGE))[..., None] / 2)
     out = []
     for vals, x, tol in ((origin, rel[..., 6:9], ORIGIN_TOL), (centre, rel[..., 3:6], CENTRE_TOL)):
         d = np.abs(vals - x[..., None])
@@ -119,4 +126,4 @@ def place_classes(rel: np.ndarray) -> np.ndarray:
 
 __all__ = ["CENTRE_FACE", "CENTRE_SIDE", "CENTRE_TOL", "FRAMES", "LOG_RANGE", "MIN_SIZE",
            "ORIGIN_GRID", "ORIGIN_TOL", "PLACE_CLASSES", "check_frame", "place_classes",
-           "token_to_frame", "token_from_frame", "to_frame", "from_frame"]
+           "place_values", "token_to_frame", "token_from_frame", "to_frame", "from_frame"]

@@ -19,7 +19,7 @@ import torch.nn as nn
 import torch.nn.functional as F
 
 from .config import NUM_JOINT_TYPES, ArticulationConfig
-from .frames import CENTRE_FACE, CENTRE_SIDE, LOG_RANGE, ORIGIN_GRID, PLACE_CLASSES
+from .frames import LOG_RANGE, PLACE_CLASSES, place_values
 
 MODE_EPS = 0.05   # art_modes > 1: share of the articulation loss spread over every mode
 
@@ -294,11 +294,10 @@ class ArticulationTransformer(nn.Module):
         mean, std = self.tok_norm[0], self.tok_norm[1]
         raw = art.float() * std + mean
         half = torch.exp(raw[..., 0:3].clamp(*LOG_RANGE)).unsqueeze(-1) / 2        # (..., 3, 1)
-        face, side = raw.new_tensor(CENTRE_FACE), raw.new_tensor(CENTRE_SIDE)
+        origin, centre = place_values(half, raw.new_tensor)
         out = raw.clone()
-        origin = raw.new_tensor(ORIGIN_GRID) + 0 * half                          # (..., 3, 3)
         for cls, sl, vals in ((classes[..., :3], slice(6, 9), origin),
-                              (classes[..., 3:], slice(3, 6), face + side * half)):
+                              (classes[..., 3:], slice(3, 6), centre)):
             n = vals.shape[-1]
             val = vals.gather(-1, cls.clamp_max(n - 1).unsqueeze(-1)).squeeze(-1)
             out[..., sl] = torch.where(cls < n, val, raw[..., sl])
