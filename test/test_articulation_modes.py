@@ -93,3 +93,50 @@ def test_the_training_flags_reach_the_configs():
     net, train = preset("tiny", **training_overrides(parser().parse_args(["--data", "d",
                                                                            "--out", "o"])))
     assert (net.art_modes, train.w_mode, train.token_frame) == (1, 1.0, "absolute")
+
+
+# -- sibling_room: a candidate box over an earlier sibling is drawn again -----------------------
+def _room(temperature: float = 0.0, free=(False, False, True)):
+    """``_make_room`` on one row: the body (token 1) already has a drawer; the three candidate
+    tokens for its next child have logits 3 > 2 > 1 and collide with the drawer where
+    ``free`` is False. -> (token chosen, candidates)."""
+    from model.articulation.decode import _make_room
+    am = _model(_net(3))
+
+    def tok(size, centre):
+        raw = np.zeros(16, np.float32)
+        raw[0:3], raw[3:6] = size, centre
+        return (torch.as_tensor(raw) - am.tok_mean) / am.tok_std
+
+    body, drawer = tok([1, 1, 1], [0, 0, 0.5]), tok([0.4, 0.8, 0.2], [0.3, 0, 0.2])
+    modes = torch.stack([tok([0.4, 0.8, 0.2], [0.3, 0, 0.2 + (0.0 if f is False else 0.21)
+                                                           + 0.05 * k])
+                         for k, f in enumerate(free)])
+    row = {"tok": [body, drawer], "par": [-1, 0], "done": [True, False, False]}
+    out = {"art_modes": torch.stack([modes] * 3)[None], "art_logits": torch.tensor(
+        [[[3.0, 2.0, 1.0]] * 3]), "art": torch.stack([modes[0]] * 3)[None].clone()}
+    _make_room(am, [row], [torch.Generator().manual_seed(0)], out, [[0, 0, 0]], None,
+               temperature)
+    return out["art"][0, 1], modes, out["art"][0, 2]
+
+
+def test_a_candidate_over_a_sibling_is_drawn_again_among_the_free_ones():
+    got, modes, other = _room()
+    assert torch.equal(got, modes[2])            # the only candidate clear of the drawer
+    assert torch.equal(other, modes[0])          # the drawer itself has no children yet
+    got, modes, _ = _room(temperature=1.0, free=(False, True, True))   # drawn among 1 and 2
+    assert torch.equal(got, modes[1]) or torch.equal(got, modes[2])
+
+
+def test_with_no_free_candidate_the_least_colliding_one_is_kept():
+    got, modes, _ = _room(free=(False, False, False))
+    # all three overlap the drawer; the one shifted furthest (0.1 of its 0.2 height) least
+    assert torch.equal(got, modes[2])
+
+
+def test_box_overlap_is_the_share_of_the_smaller_box():
+    from model.articulation.decode import box_overlap
+    a = torch.tensor([1.0, 1, 1, 0, 0, 0])
+    assert float(box_overlap(a, torch.tensor([0.5, 0.5, 0.5, 0, 0, 0]))) == pytest.approx(1.0)
+    assert float(box_overlap(a, torch.tensor([1.0, 1, 1, 0.5, 0, 0]))) == pytest.approx(0.5)
+    assert float(box_overlap(a, torch.tensor([1.0, 1, 1, 1.0, 0, 0]))) == 0.0   # touching

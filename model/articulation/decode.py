@@ -24,6 +24,8 @@ from torch.nn import functional as F
 
 from model.core.objects import JointType
 
+from .frames import LOG_RANGE
+
 # structure control and DecodedTree lived in this module before structure_control.py and
 # trees.py: the names not used here stay importable from it (re-exported)
 from .structure_control import (HINGED_LABELS, STRUCTURE_EXCLUSIVE, STRUCTURE_GRAMMAR,  # noqa: F401
@@ -45,6 +47,8 @@ def __getattr__(name: str):
 
 
 PLAN_ADD_MARGIN = 3.0   # follow_plan adds a child the END head gave p > sigmoid(-3) ~ 5 %
+SIBLING_OVERLAP = 0.1   # sibling_room: boxes sharing more than this share of the smaller
+                        # box's volume collide (siblings in the data touch at most)
 LABEL_TAU = 0.1         # the label head's softmax scale: training's label cross-entropy reads
                         # -mean((c_s - c_s(label))^2) / 0.1 as logits (network.losses)
 
@@ -53,7 +57,8 @@ LABEL_TAU = 0.1         # the label head's softmax scale: training's label cross
 def decode_trees(am: "ArticulationModel", cond_tokens: torch.Tensor, cond_mask: torch.Tensor,
                  *, seed: int, max_nodes: int, max_depth: int, max_children: int,
                  temperature: float, modality: str, keep, follow_plan: bool, plan, structure,
-                 sample_choices: bool, dropout_sampling: bool) -> list[DecodedTree]:
+                 sample_choices: bool, dropout_sampling: bool,
+                 sibling_room: bool = True) -> list[DecodedTree]:
     """``am.decode`` (``ArticulationModel.decode`` documents the arguments)."""
     if max_nodes < 1 or max_depth < 0 or max_children < 0:
         raise ValueError("max_nodes must be >= 1, max_depth and max_children >= 0")
@@ -66,7 +71,7 @@ def decode_trees(am: "ArticulationModel", cond_tokens: torch.Tensor, cond_mask: 
             max_nodes=max_nodes, max_depth=max_depth, max_children=max_children,
             temperature=temperature, modality=modality, keep=keep, follow_plan=follow_plan,
             plan=None if plan_t is None else plan_t[i:i + 1], structure=structure,
-            sample_choices=sample_choices, dropout_sampling=True)]
+            sample_choices=sample_choices, dropout_sampling=True, sibling_room=sibling_room)]
     if structure is not None:
         if keep is not None:
             raise ValueError("structure control does not combine with editing (keep)")
@@ -83,7 +88,7 @@ def decode_trees(am: "ArticulationModel", cond_tokens: torch.Tensor, cond_mask: 
             torch.manual_seed(int(seed))   # the dropout masks (the global generator)
         _rounds(am, rows, gens, memory, modality, max_rounds, max_nodes, max_depth,
                 max_children, temperature, follow_plan, structure, sample_choices,
-                dropout_sampling)
+                dropout_sampling, sibling_room)
     trees = [finish_row(am, r) for r in rows]
     if structure is not None:
         _settle_structure(rows, trees)
@@ -124,7 +129,7 @@ def _settle_structure(rows: list[dict], trees: list[DecodedTree]) -> None:
 
 def _rounds(am: "ArticulationModel", rows, gens, memory, modality, max_rounds, max_nodes,
             max_depth, max_children, temperature, follow_plan, structure, sample_choices,
-            dropout_sampling) -> None:
+            dropout_sampling, sibling_room) -> None:
     """The decoding rounds of ``decode`` (every unfinished node may get one child)."""
     for _ in range(max_rounds):
         active = [i for i, r in enumerate(rows) if not all(r["done"])]
@@ -142,18 +147,24 @@ def _rounds(am: "ArticulationModel", rows, gens, memory, modality, max_rounds, m
                 am.net.eval()
             out.update({k: sampled[k] for k in ("art", "art_raw", "art_modes", "art_logits")
                         if k in sampled})
+        picks = None
         if "art_logits" in out:          # one candidate token per node, drawn by its probability
-            out["art"] = torch.stack([
-                torch.stack([out["art_modes"][b, t, _draw_choice(out["art_logits"][b, t].float(),
-                                                                 temperature, gens[i])]
-                             for t in range(out["art_logits"].shape[1])])
-                for b, i in enumerate(active)])
+            picks = [[_draw_choice(out["art_logits"][b, t].float(), temperature, gens[i])
+                      for t in range(out["art_logits"].shape[1])] for b, i in enumerate(active)]
+            out["art"] = torch.stack([torch.stack([out["art_modes"][b, t, k]
+                                                   for t, k in enumerate(picks[b])])
+                                      for b in range(len(active))])
+        classes = None
         if "origin_logits" in out:       # origins on faces / centre lines, boxes on faces
             raw = out["art"] if "art_logits" in out else out["art_raw"]
-            out["art"] = am.net.snap(raw, torch.stack([am.net.place_classes(
+            classes = torch.stack([am.net.place_classes(
                 {k: out[k][b] for k in ("origin_logits", "centre_logits")},
                 lambda l, i=i: _draw_classes(l.float(), temperature, gens[i]))
-                for b, i in enumerate(active)]))
+                for b, i in enumerate(active)])
+            out["art"] = am.net.snap(raw, classes)
+        if sibling_room and picks is not None:
+            _make_room(am, [rows[i] for i in active], [gens[i] for i in active], out, picks,
+                       classes, temperature)
         for b, i in enumerate(active):
             if "plan" in out and rows[i]["plan_logits"] is None:
                 rows[i]["plan_logits"] = out["plan"][b].float().numpy().copy()
@@ -168,6 +179,52 @@ def _rounds(am: "ArticulationModel", rows, gens, memory, modality, max_rounds, m
             grow(am, rows[i], {k: v[b] for k, v in out.items()}, gens[i],
                  max_nodes, max_depth, max_children, temperature,
                  temperature if sample_choices else 0.0)
+
+
+def box_overlap(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
+    """Intersection of boxes (..., 6) = (size, centre) over the smaller one's volume."""
+    lo = torch.maximum(a[..., 3:6] - a[..., 0:3] / 2, b[..., 3:6] - b[..., 0:3] / 2)
+    hi = torch.minimum(a[..., 3:6] + a[..., 0:3] / 2, b[..., 3:6] + b[..., 0:3] / 2)
+    inter = (hi - lo).clamp_min(0).prod(-1)
+    small = torch.minimum(a[..., 0:3].prod(-1), b[..., 0:3].prod(-1)).clamp_min(1e-12)
+    return inter / small
+
+
+def _make_room(am: "ArticulationModel", rows: list[dict], gens: list, out: dict,
+               picks: list[list[int]], classes: Optional[torch.Tensor],
+               temperature: float) -> None:
+    """``sibling_room``: where the candidate token drawn for a node's next child puts its box
+    over one of that node's children already decoded (SIBLING_OVERLAP), the choice is drawn
+    again among the network's other candidates (``art_modes``, snapped to the same place
+    classes) that collide with none, by their probabilities; with none free, the least
+    colliding one. Tokens of one parent's children share a frame (the parent's box, or the
+    object's), so their boxes compare as they are. Changes ``out["art"]`` in place."""
+    def boxes(tok: torch.Tensor) -> torch.Tensor:
+        raw = tok.float() * am.tok_std + am.tok_mean
+        size = (torch.exp(raw[..., 0:3].clamp(*LOG_RANGE)) if am.frame == "parent"
+                else raw[..., 0:3].abs())
+        return torch.cat([size, raw[..., 3:6]], -1)
+
+    for b, row in enumerate(rows):
+        for t in range(1, len(row["done"])):
+            kids = [j for j, p in enumerate(row["par"]) if p == t - 1]
+            if row["done"][t] or not kids:
+                continue
+            have = boxes(torch.stack([row["tok"][j] for j in kids]))          # (C, 6)
+            if float(box_overlap(boxes(out["art"][b, t]), have).max()) <= SIBLING_OVERLAP:
+                continue
+            modes = out["art_modes"][b, t]                                    # (K, 16)
+            if classes is not None:
+                modes = am.net.snap(modes, classes[b, t].expand(len(modes), -1))
+            worst = box_overlap(boxes(modes)[:, None], have[None]).amax(-1)   # (K,)
+            free = worst <= SIBLING_OVERLAP
+            if bool(free.any()):
+                logits = out["art_logits"][b, t].float().masked_fill(~free, float("-inf"))
+                k = _draw_choice(logits, temperature, gens[b])
+            else:
+                k = int(worst.argmin())
+            if k != picks[b][t]:
+                out["art"][b, t] = modes[k].to(out["art"].dtype)
 
 
 # -- one round of one row ---------------------------------------------------------------------------

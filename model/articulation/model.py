@@ -120,7 +120,8 @@ class ArticulationModel:
                keep: Union[ArticulatedObject, DecodedTree, None] = None,
                follow_plan: bool = False, plan=None,
                structure=None, sample_choices: bool = False,
-               dropout_sampling: bool = False) -> list[DecodedTree]:
+               dropout_sampling: bool = False,
+               sibling_room: bool = True) -> list[DecodedTree]:
         """cond_tokens (S, L, D_cond), cond_mask (S, L) -> S decoded trees.
 
         ``temperature`` scales the END logits and the joint-type logits before sampling
@@ -165,9 +166,15 @@ class ArticulationModel:
         The seed thus picks one of the thinned networks dropout trained (Monte-Carlo
         dropout): it samples the network's uncertainty about the layout, not a learned
         distribution of layouts. Rows are then decoded one at a time (seed + i each).
+
+        ``sibling_room`` (default on; a deviation from the paper): a network with articulation
+        modes proposes several candidate tokens per new part; where the one drawn puts the
+        part's box over a sibling decoded before it (more than SIBLING_OVERLAP of the smaller
+        box), the draw is repeated among the candidates that collide with none (decode.py).
         """
         return decode_trees(self, cond_tokens, cond_mask, seed=seed, max_nodes=max_nodes,
                             max_depth=max_depth, max_children=max_children,
                             temperature=temperature, modality=modality, keep=keep,
                             follow_plan=follow_plan, plan=plan, structure=structure,
-                            sample_choices=sample_choices, dropout_sampling=dropout_sampling)
+                            sample_choices=sample_choices, dropout_sampling=dropout_sampling,
+                            sibling_room=sibling_room)

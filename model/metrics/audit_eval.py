@@ -84,6 +84,9 @@ def main(argv: list[str]) -> int:
     p.add_argument("--no-everyday", action="store_true")
     p.add_argument("--rows", default="floor,raw,refined,retrieval",
                    help="comma-separated rows: floor, raw, refined, retrieval (default all)")
+    p.add_argument("--no-sibling-room", dest="sibling_room", action="store_false",
+                   help="decode without redrawing candidate boxes that cover a sibling "
+                        "(GenerationConfig.sibling_room)")
     args = p.parse_args(argv[2:] if argv[:2] == ["eval", "audit"] else argv)
     from model.metrics.audit import audit_table, summarise, write_contact_sheet
     from model.metrics.reference import freeform_prompts
@@ -91,7 +94,8 @@ def main(argv: list[str]) -> int:
     prompts = list(freeform_prompts(args.freeform_file)) + ([] if args.no_everyday else list(EVERYDAY))
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    gen = Generator.load(GenerationConfig(checkpoint=args.checkpoint))
+    gen = Generator.load(GenerationConfig(checkpoint=args.checkpoint,
+                                          sibling_room=args.sibling_room))
     t0 = time.time()
     results = {}
     rows = [r.strip() for r in args.rows.split(",") if r.strip()]

@@ -192,14 +192,14 @@ def teacher_forced(am, rec, text: str) -> dict:
 
 def layout_precision(data_root: str, *, n: int = 100, split: str = "test",
                      length: str = "sentence", seed: int = 0, checkpoint: Optional[str] = None,
-                     progress: bool = False) -> dict:
+                     progress: bool = False, sibling_room: bool = True) -> dict:
     """Free-running layout errors of the product's decoding on ``n`` objects of ``split``
     (the first description of ``length`` of each), raw and refined."""
     from model.data import format as fmt
     from model.pipeline.api import GenerationConfig
     from model.pipeline.generator import Generator
 
-    gen = Generator.load(GenerationConfig(checkpoint=checkpoint))
+    gen = Generator.load(GenerationConfig(checkpoint=checkpoint, sibling_room=sibling_room))
     ids = fmt.split_ids(data_root, split)[:n]
     rows = {m: {k: [] for k in KEYS} for m in MODES}
     counts = {m: [0, 0, 0] for m in MODES}                   # pairs, extra, missed
@@ -282,9 +282,12 @@ def main(argv: list[str]) -> int:
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--checkpoint", default=None)
     p.add_argument("--out", default=None, help="write the report as JSON here")
+    p.add_argument("--no-sibling-room", dest="sibling_room", action="store_false",
+                   help="decode without redrawing candidate boxes that cover a sibling")
     a = p.parse_args(argv)
     rep = layout_precision(a.data, n=a.n, split=a.split, length=a.length, seed=a.seed,
-                           checkpoint=a.checkpoint, progress=sys.stderr.isatty())
+                           checkpoint=a.checkpoint, progress=sys.stderr.isatty(),
+                           sibling_room=a.sibling_room)
     if not rep["summary"]["raw"]["pairs"]:
         print(f"artformer eval layout: no {a.split} object of {a.data} has a {a.length!r} "
               "description", file=sys.stderr)

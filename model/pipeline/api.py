@@ -38,6 +38,9 @@ class GenerationConfig:
                                        # of one structure; "structure" = only when a structure
                                        # is forced (free text: it lowers alignment 0.815 ->
                                        # 0.79; docs/structure.md, "Diversity")
+    sibling_room: bool = True          # a new part's candidate box that covers a sibling
+                                       # decoded before it is drawn again among the network's
+                                       # other candidates (decode.py, docs/articulation.md)
     prompt_structure: bool = True      # hold text decoding to the part counts, joint types
                                        # and hinge sides the prompt states outright, read by
                                        # the rule-based prompt parser (prompt_structure.py;

@@ -30,6 +30,9 @@ def _model_args(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-prompt-structure", dest="prompt_structure", action="store_false",
                    help="decode a text with the network's own reading of it, without holding "
                         "the part counts, joint types and hinge sides the text states")
+    p.add_argument("--no-sibling-room", dest="sibling_room", action="store_false",
+                   help="keep every candidate box the network draws, also one that covers a "
+                        "sibling part decoded before it")
     p.add_argument("--no-frame", dest="frame_images", action="store_false",
                    help="read an --image as it is, without cropping a plain background around "
                         "the object first")
@@ -61,6 +64,7 @@ def _config(a):
                             structure_temperature=a.structure_temperature,
                             follow_plan=a.follow_plan, refine=a.refine,
                             prompt_structure=getattr(a, "prompt_structure", True),
+                            sibling_room=getattr(a, "sibling_room", True),
                             face_budget=a.face_budget,
                             frame_images=getattr(a, "frame_images", True))
 

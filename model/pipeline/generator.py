@@ -227,6 +227,7 @@ class Generator:
                                    follow_plan=modality == "text" and "text" in cfg.follow_plan,
                                    plan=plan, structure=splan,
                                    sample_choices=cfg.sample_choices,
+                                   sibling_room=cfg.sibling_room,
                                    dropout_sampling=cfg.layout_sampling == "always" or (
                                        cfg.layout_sampling == "structure" and splan is not None))
         timings["decoding"] = (time.perf_counter() - t) / S
