@@ -9,7 +9,7 @@ setup(
     name=PACKAGE,
     version="0.1.0",
     packages=find_packages(include=["artformer_ros", "artformer_ros.*", "model", "model.*"]),
-    package_data={"model": ["weights/*.pt", "weights/image_prior/*.pt", "weights/*.json",
+    package_data={"model": ["weights/*.pt", "weights/*.json",
                             "weights/*.md", "assets/*", "metrics/*.txt"]},
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
