@@ -52,6 +52,8 @@ PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec("prompt_structure", True, "hold a text request's decoding to the part counts, "
               "joint types and hinge sides its text states outright (GenerationConfig."
               "prompt_structure); false = the network's own reading", read_only=True),
+    ParamSpec("sibling_room", True, "redraw a part's candidate box that covers a sibling decoded "
+              "before it (GenerationConfig.sibling_room)", read_only=True),
     ParamSpec("frame_images", True, "crop an image request with a plain background around its "
               "object first, as the training renders frame it", read_only=True),
     ParamSpec("device", "cpu", "torch device; this build runs on the CPU only ('cpu')",
@@ -136,6 +138,7 @@ class NodeSettings:
     mesh_uri: str = "file"
     refine: bool = True
     prompt_structure: bool = True
+    sibling_room: bool = True
     frame_images: bool = True
     device: str = "cpu"
     threads: int = 2
@@ -176,4 +179,5 @@ class NodeSettings:
                                 mesh_format=self.mesh_format, device=self.device,
                                 threads=self.threads, mesh_workers=self.mesh_workers,
                                 frame_images=self.frame_images,
-                                refine=self.refine, prompt_structure=self.prompt_structure)
+                                refine=self.refine, prompt_structure=self.prompt_structure,
+                                sibling_room=self.sibling_room)
