@@ -325,3 +325,24 @@ def test_cli_structure_errors_come_before_the_model_loads(tmp_path, capsys):
         main(["generate", "--prompts", "p.txt", "--size", '{"width": 1}', "--out",
               str(tmp_path / "o")])
     assert not (tmp_path / "o").exists()
+
+
+def test_hold_plan_decodes_the_counts_the_plan_head_reads(am):
+    """follow_plan="hold": each row is decoded again with its START plan head's counts held
+    as a structure (decode.plan_structure); the category stays the first decoding's."""
+    from model.articulation.decode import plan_structure
+    prompts = ["a safe with a 3 x 4 keypad, a door and a handle",
+               "an oven with six control knobs, a door that folds down and two trays",
+               "a dresser with eight drawers in two columns"]
+    cond, mask = am.encode_text(prompts)
+    first = am.decode(cond, mask, seed=3, temperature=0.3, follow_plan=True)
+    held = am.decode(cond, mask, seed=3, temperature=0.3, follow_plan="hold")
+    for f, h in zip(first, held):
+        spec = plan_structure(am, f)
+        assert spec["category"] == h.category == f.category and "body" not in spec
+        assert "handle" in spec                       # its count is held too, even 0
+        want = {k: v for k, v in spec.items() if k != "category"}
+        assert {lab: h.labels.count(lab) for lab in want} == want
+        assert set(h.labels) <= set(want) | {"body"}
+    # the plan alone does not get there: soft-followed, the keypad came out 10 buttons of 12
+    assert first[0].labels.count("button") != plan_structure(am, first[0])["button"]

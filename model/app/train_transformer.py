@@ -24,6 +24,9 @@ def parser():
     ap.add_argument("--temperature", type=float, default=1.0)
     ap.add_argument("--follow-plan", action="store_true",
                     help="--eval: decode with END decisions held to the START plan head")
+    ap.add_argument("--hold-plan", dest="follow_plan", action="store_const", const="hold",
+                    help="--eval: decode again with the plan head's counts held as a structure "
+                         "(decode(follow_plan='hold'))")
     ap.add_argument("--json", metavar="PATH", help="--eval: write the report as JSON")
     return ap
 

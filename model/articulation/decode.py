@@ -72,6 +72,12 @@ def decode_trees(am: "ArticulationModel", cond_tokens: torch.Tensor, cond_mask: 
             temperature=temperature, modality=modality, keep=keep, follow_plan=follow_plan,
             plan=None if plan_t is None else plan_t[i:i + 1], structure=structure,
             sample_choices=sample_choices, dropout_sampling=True, sibling_room=sibling_room)]
+    if follow_plan == "hold" and structure is None and keep is None and plan is None:
+        return _hold_plan(am, cond_tokens, cond_mask, seed=seed, max_nodes=max_nodes,
+                          max_depth=max_depth, max_children=max_children,
+                          temperature=temperature, modality=modality,
+                          sample_choices=sample_choices, dropout_sampling=dropout_sampling,
+                          sibling_room=sibling_room)
     if structure is not None:
         if keep is not None:
             raise ValueError("structure control does not combine with editing (keep)")
@@ -93,6 +99,45 @@ def decode_trees(am: "ArticulationModel", cond_tokens: torch.Tensor, cond_mask: 
     if structure is not None:
         _settle_structure(rows, trees)
     return trees
+
+
+def plan_structure(am: "ArticulationModel", tree: DecodedTree) -> dict:
+    """The structure a decoded tree's START plan head reads from its condition: the tree's
+    category and the plan's most likely count of every label it counts (``handle`` always
+    named, so its count is held too; the body is the root)."""
+    counts = tree.plan_logits.argmax(-1).tolist()
+    spec: dict = {"category": tree.category}
+    for lab, n in zip(am.cfg.count_labels, counts):
+        if lab != "body" and (n > 0 or lab == "handle"):
+            spec[lab] = int(n)
+    return spec
+
+
+def _hold_plan(am: "ArticulationModel", cond_tokens, cond_mask, *, seed: int, max_nodes: int,
+               max_depth: int, max_children: int, **kw) -> list[DecodedTree]:
+    """``follow_plan="hold"``: decode with the plan followed (``follow_plan=True``), then
+    decode each row again with the structure its plan head read (:func:`plan_structure`)
+    held by structure control; a row whose plan the model cannot produce as a structure
+    (a label its category does not have, a count over the caps) keeps its first tree."""
+    first = decode_trees(am, cond_tokens, cond_mask, seed=seed, max_nodes=max_nodes,
+                         max_depth=max_depth, max_children=max_children, keep=None,
+                         follow_plan=True, plan=None, structure=None, **kw)
+    out = []
+    for i, tree in enumerate(first):
+        if tree.plan_logits is None:
+            out.append(tree)
+            continue
+        try:
+            splan = am.resolve_structure(plan_structure(am, tree), max_nodes=max_nodes,
+                                         max_children=max_children)
+        except ValueError:
+            out.append(tree)
+            continue
+        out += decode_trees(am, cond_tokens[i:i + 1], cond_mask[i:i + 1], seed=int(seed) + i,
+                            max_nodes=max_nodes, max_depth=max_depth,
+                            max_children=max_children, keep=None, follow_plan=False,
+                            plan=None, structure=splan, **kw)
+    return out
 
 
 def _start_rows(am: "ArticulationModel", S: int, keep, max_nodes: int,

@@ -118,7 +118,7 @@ class ArticulationModel:
                max_nodes: int = 32, max_depth: int = 4, max_children: int = 16,
                temperature: float = 1.0, modality: str = "text",
                keep: Union[ArticulatedObject, DecodedTree, None] = None,
-               follow_plan: bool = False, plan=None,
+               follow_plan: Union[bool, str] = False, plan=None,
                structure=None, sample_choices: bool = False,
                dropout_sampling: bool = False,
                sibling_room: bool = True) -> list[DecodedTree]:
@@ -135,6 +135,9 @@ class ArticulationModel:
         predicted label has already reached its planned count is not added, and a node that
         would stop while its predicted child's label is still short of the plan adds it.
         Needs a checkpoint trained with the plan head; ignored otherwise.
+        ``follow_plan="hold"`` then decodes every row again with the counts its plan head
+        read held as a structure (``decode.plan_structure``, structure control below); a row
+        whose plan is no valid structure keeps its first tree.
 
         ``plan`` (S, len(count_labels)) integer counts from elsewhere (the image count head,
         model.imaging.counts) replaces the START plan head's and is always followed; a

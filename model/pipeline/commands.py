@@ -27,6 +27,9 @@ def _model_args(p: argparse.ArgumentParser) -> None:
                    default=("text",),
                    help="decode END from the END head alone (the paper's decoding), without "
                         "holding it to the START plan head")
+    p.add_argument("--soft-plan", dest="hold_plan", action="store_false",
+                   help="hold END to the START plan head without decoding again with its counts "
+                        "as a structure (GenerationConfig.hold_plan)")
     p.add_argument("--no-prompt-structure", dest="prompt_structure", action="store_false",
                    help="decode a text with the network's own reading of it, without holding "
                         "the part counts, joint types and hinge sides the text states")
@@ -65,6 +68,7 @@ def _config(a):
                             follow_plan=a.follow_plan, refine=a.refine,
                             prompt_structure=getattr(a, "prompt_structure", True),
                             sibling_room=getattr(a, "sibling_room", True),
+                            hold_plan=getattr(a, "hold_plan", True),
                             face_budget=a.face_budget,
                             frame_images=getattr(a, "frame_images", True))
 
