@@ -52,6 +52,8 @@ PARAMS: tuple[ParamSpec, ...] = (
     ParamSpec("prompt_structure", True, "hold a text request's decoding to the part counts, "
               "joint types and hinge sides its text states outright (GenerationConfig."
               "prompt_structure); false = the network's own reading", read_only=True),
+    ParamSpec("hold_plan", True, "decode a text again with the counts its START plan head "
+              "read held as a structure (GenerationConfig.hold_plan)", read_only=True),
     ParamSpec("sibling_room", True, "redraw a part's candidate box that covers a sibling decoded "
               "before it (GenerationConfig.sibling_room)", read_only=True),
     ParamSpec("frame_images", True, "crop an image request with a plain background around its "
@@ -139,6 +141,7 @@ class NodeSettings:
     refine: bool = True
     prompt_structure: bool = True
     sibling_room: bool = True
+    hold_plan: bool = True
     frame_images: bool = True
     device: str = "cpu"
     threads: int = 2
@@ -180,4 +183,4 @@ class NodeSettings:
                                 threads=self.threads, mesh_workers=self.mesh_workers,
                                 frame_images=self.frame_images,
                                 refine=self.refine, prompt_structure=self.prompt_structure,
-                                sibling_room=self.sibling_room)
+                                sibling_room=self.sibling_room, hold_plan=self.hold_plan)

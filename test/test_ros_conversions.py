@@ -321,13 +321,15 @@ def test_valid_parameter_values_pass():
 
 def test_generation_config_carries_the_model_parameters():
     s = NodeSettings(checkpoint="", resolution=32, steps=7, mesh_format="stl", refine=False,
-                     prompt_structure=False, sibling_room=False)
+                     prompt_structure=False, sibling_room=False,
+                     hold_plan=False)
     cfg = s.generation_config()
     assert (cfg.checkpoint, cfg.resolution, cfg.steps, cfg.mesh_format) == (None, 32, 7, "stl")
     assert cfg.refine is False and NodeSettings().generation_config().refine is True
     assert cfg.prompt_structure is False
     assert NodeSettings().generation_config().prompt_structure is True
     assert cfg.sibling_room is False and NodeSettings().generation_config().sibling_room is True
+    assert cfg.hold_plan is False and NodeSettings().generation_config().hold_plan is True
 
 
 def test_config_yaml_holds_exactly_the_declared_defaults():
