@@ -115,8 +115,7 @@ def _room(temperature: float = 0.0, free=(False, False, True)):
     row = {"tok": [body, drawer], "par": [-1, 0], "done": [True, False, False]}
     out = {"art_modes": torch.stack([modes] * 3)[None], "art_logits": torch.tensor(
         [[[3.0, 2.0, 1.0]] * 3]), "art": torch.stack([modes[0]] * 3)[None].clone()}
-    _make_room(am, [row], [torch.Generator().manual_seed(0)], out, [[0, 0, 0]], None,
-               temperature)
+    _make_room(am, [row], [torch.Generator().manual_seed(0)], out, None, temperature)
     return out["art"][0, 1], modes, out["art"][0, 2]
 
 

@@ -192,13 +192,12 @@ def _rounds(am: "ArticulationModel", rows, gens, memory, modality, max_rounds, m
                 am.net.eval()
             out.update({k: sampled[k] for k in ("art", "art_raw", "art_modes", "art_logits")
                         if k in sampled})
-        picks = None
         if "art_logits" in out:          # one candidate token per node, drawn by its probability
-            picks = [[_draw_choice(out["art_logits"][b, t].float(), temperature, gens[i])
-                      for t in range(out["art_logits"].shape[1])] for b, i in enumerate(active)]
-            out["art"] = torch.stack([torch.stack([out["art_modes"][b, t, k]
-                                                   for t, k in enumerate(picks[b])])
-                                      for b in range(len(active))])
+            out["art"] = torch.stack([
+                torch.stack([out["art_modes"][b, t, _draw_choice(out["art_logits"][b, t].float(),
+                                                                 temperature, gens[i])]
+                             for t in range(out["art_logits"].shape[1])])
+                for b, i in enumerate(active)])
         classes = None
         if "origin_logits" in out:       # origins on faces / centre lines, boxes on faces
             raw = out["art"] if "art_logits" in out else out["art_raw"]
@@ -207,9 +206,9 @@ def _rounds(am: "ArticulationModel", rows, gens, memory, modality, max_rounds, m
                 lambda l, i=i: _draw_classes(l.float(), temperature, gens[i]))
                 for b, i in enumerate(active)])
             out["art"] = am.net.snap(raw, classes)
-        if sibling_room and picks is not None:
-            _make_room(am, [rows[i] for i in active], [gens[i] for i in active], out, picks,
-                       classes, temperature)
+        if sibling_room and "art_logits" in out:
+            _make_room(am, [rows[i] for i in active], [gens[i] for i in active], out, classes,
+                       temperature)
         for b, i in enumerate(active):
             if "plan" in out and rows[i]["plan_logits"] is None:
                 rows[i]["plan_logits"] = out["plan"][b].float().numpy().copy()
@@ -236,8 +235,7 @@ def box_overlap(a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
 
 
 def _make_room(am: "ArticulationModel", rows: list[dict], gens: list, out: dict,
-               picks: list[list[int]], classes: Optional[torch.Tensor],
-               temperature: float) -> None:
+               classes: Optional[torch.Tensor], temperature: float) -> None:
     """``sibling_room``: where the candidate token drawn for a node's next child puts its box
     over one of that node's children already decoded (SIBLING_OVERLAP), the choice is drawn
     again among the network's other candidates (``art_modes``, snapped to the same place
@@ -268,8 +266,7 @@ def _make_room(am: "ArticulationModel", rows: list[dict], gens: list, out: dict,
                 k = _draw_choice(logits, temperature, gens[b])
             else:
                 k = int(worst.argmin())
-            if k != picks[b][t]:
-                out["art"][b, t] = modes[k].to(out["art"].dtype)
+            out["art"][b, t] = modes[k].to(out["art"].dtype)
 
 
 # -- one round of one row ---------------------------------------------------------------------------
