@@ -413,11 +413,13 @@ def test_double_doors_swing_apart_and_knobs_keep_clear_of_a_door():
 
 @pytest.mark.parametrize("category, label, decoded, kept", [
     ("WashingMachine", "lid", 3.73, 120.0), ("Bottle", "lid", 3.0, 160.0),
-    ("StorageFurniture", "door", 1.6, np.degrees(1.6))])
-def test_a_door_or_lid_swings_no_further_than_the_datas(category, label, decoded, kept):
+    ("StorageFurniture", "door", 1.6, np.degrees(1.6)),
+    ("Oven", "door", 0.054, 60.0), ("WashingMachine", "door", 0.0007, 60.0)])
+def test_a_door_or_lid_swings_within_the_datas_range(category, label, decoded, kept):
     """A washer lid decoded with a 214 degree range swung over the back and hung down
     behind the machine: doors and lids open at most as far as the data's widest (120
-    degrees; a bottle's flip lid 160); narrower ranges stay."""
+    degrees; a bottle's flip lid 160); a door decoded to open 3 degrees (or not at all)
+    opens as far as the data's narrowest (60); ranges between stay."""
     lid = label == "lid"
     obj = ArticulatedObject(category=category, name="o", parts=[
         _part("body_0", "body", -1, (0.5, 0.5, 0.8), (0, 0, 0.4)),
@@ -427,6 +429,18 @@ def test_a_door_or_lid_swings_no_further_than_the_datas(category, label, decoded
                     (0, -1, 0) if lid else (0, 0, 1), r_range=(0, decoded)))])
     refine_layout(obj)
     assert obj.parts[1].joint.r_range == pytest.approx((0.0, np.radians(kept)))
+
+
+@pytest.mark.parametrize("decoded, kept", [(0.009, 0.2), (0.3, 0.3), (0.5, 0.36)])
+def test_a_drawer_slides_out_between_half_and_most_of_its_depth(decoded, kept):
+    """A drawer decoded to slide out 9 mm slides half its 40 cm depth (the data's shortest
+    travel); a decoded travel between stays; one past its depth ends at 90 % of it."""
+    obj = ArticulatedObject(category="StorageFurniture", name="o", parts=[
+        _part("body_0", "body", -1, (0.42, 0.6, 0.8), (0, 0, 0.4)),
+        _part("drawer_0", "drawer", 0, (0.4, 0.5, 0.2), (0.01, 0, 0.5),
+              Joint(JointType.PRISMATIC, (0.21, 0, 0.5), (1, 0, 0), t_range=(0, decoded)))])
+    refine_layout(obj)
+    assert obj.parts[1].joint.t_range == pytest.approx((0.0, kept))
 
 
 def test_a_knob_cut_into_a_slab_is_round_again():

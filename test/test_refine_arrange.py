@@ -404,3 +404,39 @@ def test_a_drawer_stated_in_a_corner_goes_above_and_then_to_its_side():
     sp = spatial_summary(obj)
     assert sp["drawer"]["vpos"] == ["top"] and sp["drawer"]["hpos"] == ["left"]
     assert is_above(sp, "drawer", "door")
+
+
+def test_controls_stated_one_above_the_other_keep_their_size():
+    """"A microwave with a keypad" (its facts: the door on the left, knobs and buttons in
+    columns on the right, buttons below knobs): two 6 mm buttons decoded touching, 5 mm into
+    the knob column above them, end up in their own band below the knobs with room between
+    them; after the layout refinement none overlaps another or is cut under 5 mm."""
+    def ctrl(n, label, size, z):
+        return _part(f"{label}_{n}", label, 0, size, (0.1925, 0.17, z),
+                     Joint(JointType.PRISMATIC if label == "button" else JointType.REVOLUTE,
+                           (0.19, 0.17, z), (-1, 0, 0) if label == "button" else (1, 0, 0),
+                           t_range=(0, 0.003), r_range=(0, 6.0)))
+    obj = ArticulatedObject(category="Oven", name="o", parts=[
+        _part("body_0", "body", -1, (0.38, 0.5, 0.3), (0, 0, 0.185)),
+        _door(0, (0.021, 0.37, 0.186), (0.2005, -0.0045, 0.171), (0.211, -0.188, 0.171)),
+        ctrl(0, "knob", (0.021, 0.015, 0.014), 0.301), ctrl(1, "knob", (0.019, 0.015, 0.014),
+                                                            0.316),
+        ctrl(0, "button", (0.005, 0.014, 0.006), 0.2955),
+        ctrl(1, "button", (0.006, 0.012, 0.006), 0.2885)])
+    facts = {"door": {"hinge": ["left"], "opens": ["sideways"], "hpos": ["left"]},
+             "knob": {"hpos": ["right"], "layout": "column"},
+             "button": {"hpos": ["right"], "layout": "column", "below": ["knob"]}}
+    arrange_stated(obj, facts)
+    ctrl_parts = [p for p in obj.parts if p.label in ("knob", "button")]
+    lo = {p.name: p.bbox_center - p.bbox_size / 2 for p in ctrl_parts}
+    hi = {p.name: p.bbox_center + p.bbox_size / 2 for p in ctrl_parts}
+    assert max(hi[f"button_{k}"][2] for k in (0, 1)) <= min(lo[f"knob_{k}"][2] for k in (0, 1))
+    assert lo["button_0"][2] - hi["button_1"][2] > 0.002          # room between the keys
+    refine_layout(obj, stated=facts)
+    for a in ctrl_parts:
+        assert np.all(a.bbox_size[1:] >= 0.005), (a.name, a.bbox_size)
+        for b in ctrl_parts:
+            if a is not b:
+                alo, ahi = a.bbox_center - a.bbox_size / 2, a.bbox_center + a.bbox_size / 2
+                blo, bhi = b.bbox_center - b.bbox_size / 2, b.bbox_center + b.bbox_size / 2
+                assert not np.all((alo < bhi - 1e-6) & (blo < ahi - 1e-6)), (a.name, b.name)

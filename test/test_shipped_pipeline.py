@@ -120,7 +120,7 @@ def test_a_microwave_keypad_is_a_column_of_controls_beside_its_door(gen):
     """"A microwave with a keypad": at least two buttons (the stated lower bound holds though
     the network alone reads a washer), and every knob and button in one column right of the
     door, knobs above buttons, none overlapping another, none squeezed under 5 mm."""
-    for seed in range(3):
+    for seed in range(6):       # seeds 3-5 had a button cut to 3 mm by a knob above it
         trees, *_ = gen.decode_trees("a microwave with a keypad", seed=seed)
         obj = gen.layout(trees[0])
         parts = obj.parts

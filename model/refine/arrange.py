@@ -275,20 +275,27 @@ def _bands(obj: ArticulatedObject, low: list[int], high: list[int], ax: int,
     top to bottom on a face where a panel turns about a horizontal axis (an oven's
     drop-down door stays at the bottom)."""
     (alo, ahi), (blo, bhi) = _cspan(obj, low, ax), _cspan(obj, high, ax)
-    if ahi < blo + 0.01:
+    fronts = all(obj.parts[i].label in BANDED for i in low + high)
+    ctrl = [g for g in (low, high) if not any(obj.parts[i].label in BANDED for i in g)]
+    # panels overlapping by under a centimetre count as banded (the refinement cuts that
+    # much apart); controls of a few millimetres must not overlap at all
+    if ahi < blo + (0.01 if ctrl != [low, high] else 0.0):
         return False
     if ax == V and any(_turns_horizontally(obj, i) for i in low + high):
         return _above_drop_down(obj, low, high)
     lo, hi = min(alo, blo), max(ahi, bhi)
+    if ctrl == [low, high]:       # two groups of controls keep their size: the span grows
+        mid, need = (lo + hi) / 2, (ahi - alo) + (bhi - blo) + GAP   # about its middle
+        plo, phi = _cspan(obj, [obj.parts[low[0]].parent], ax)       # within the face
+        lo = min(lo, max(plo, min(mid - need / 2, phi - need)))
+        hi = max(hi, lo + need)
     # panels side by side share the other extent too: a door left of a stack of drawers is
     # as tall as the stack (else tiling the front grows each across the other's band)
-    fronts = all(obj.parts[i].label in BANDED for i in low + high)
     panels = fronts and share
     if fronts and ax == V:        # fronts one above the other fill the face's height: a door
         plo, phi = _cspan(obj, [obj.parts[low[0]].parent], V)   # "at the bottom" below two
         frame = frame_of(phi - plo)                              # drawers reaches down
         lo, hi = min(lo, plo + frame), max(hi, phi - frame)
-    ctrl = [g for g in (low, high) if not any(obj.parts[i].label in BANDED for i in g)]
     if len(ctrl) == 1 and ax == H:   # controls beside a door: the two share the front's width
         plo, phi = _cspan(obj, [obj.parts[low[0]].parent], H)
         frame = frame_of(phi - plo)
@@ -519,6 +526,15 @@ def _lay_out(obj: ArticulatedObject, group: list[int], per_row: list[int],
     row, top row first; ``gap`` m between cells (None: :data:`GAP_SHARE` of a cell)."""
     lo, hi = _union([obj.parts[i] for i in group])
     lo, hi = lo - (gap or 0.0) / 2, hi + (gap or 0.0) / 2
+    own = np.median([obj.parts[i].bbox_size for i in group], axis=0)   # controls keep theirs
+    if all(obj.parts[i].label in ON_FACE for i in group):
+        # cells of controls at least PITCH of their size: a column of two 5 mm buttons
+        # decoded touching gets room between them (the rectangle grows about its middle)
+        for ax, n in ((H, max(per_row)), (V, len(per_row))):
+            need = PITCH * float(own[ax]) * n
+            if hi[ax] - lo[ax] < need:
+                mid = (lo[ax] + hi[ax]) / 2
+                lo[ax], hi[ax] = mid - need / 2, mid + need / 2
     parent = obj.parts[group[0]].parent
     if parent >= 0:                   # within its parent's face: a keypad stays on its door
         plo, phi = _lohi(obj.parts[parent])
@@ -527,7 +543,6 @@ def _lay_out(obj: ArticulatedObject, group: list[int], per_row: list[int],
                 lo[ax], hi[ax] = max(lo[ax], plo[ax]), min(hi[ax], phi[ax])
     rows = len(per_row)
     height = (hi[V] - lo[V]) / rows
-    own = np.median([obj.parts[i].bbox_size for i in group], axis=0)   # controls keep theirs
     # top row first, then the viewer's left first: the model's own order where it had one
     order = sorted(group, key=lambda i: -obj.parts[i].bbox_center[V])
     start = 0

@@ -199,11 +199,16 @@ def _hinge(obj: ArticulatedObject, i: int, face: tuple[int, float]) -> None:
     j.origin, j.axis = origin, axis
     _range_from_rest(j)
     most = np.radians(PANEL_SWING.get(obj.category, PANEL_SWING[None]))
-    j.r_range = (0.0, float(min(j.r_range[1], most)))
+    j.r_range = (0.0, float(np.clip(j.r_range[1], np.radians(PANEL_MIN_SWING), most)))
 
 
 PANEL_SWING = {None: 120.0, "Bottle": 160.0}   # degrees: the widest door or lid swing of
                                                # the data (model/data/synth), per category
+PANEL_MIN_SWING = 60.0   # degrees: the narrowest (cabinet doors 60-110, washer lids 75-90):
+                         # a door decoded to open a few degrees opens this far (the sweep
+                         # check then ends it where it would collide)
+DRAWER_MIN_TRAVEL = 0.5  # of its depth: the shortest drawer travel of the data (washer soap
+                         # drawers 0.5-0.8, cabinet drawers 0.6-0.85)
 
 
 def _range_from_rest(j) -> None:
@@ -318,7 +323,9 @@ def _slide(obj: ArticulatedObject, i: int, face: tuple[int, float]) -> None:
     travel = float(max(abs(j.t_range[0]), abs(j.t_range[1])))
     if p.label in SLIDERS:
         j.axis = np.eye(3)[k] * s
-        travel = min(travel, 0.9 * float(p.bbox_size[k]))      # stays in its opening
+        low = DRAWER_MIN_TRAVEL if p.label == "drawer" else 0.0   # trays: their rack's own
+        travel = float(np.clip(travel, low * float(p.bbox_size[k]),
+                               0.9 * float(p.bbox_size[k])))      # stays in its opening
     else:                                                     # buttons press in
         j.axis = -np.eye(3)[k] * s
         travel = min(travel, 0.5 * float(p.bbox_size[k]))
