@@ -176,3 +176,26 @@ def test_open_parts_keep_the_networks_own_counts():
     s = structure_for(e, "WashingMachine", _all_labels("WashingMachine"),
                       open_counts={"door": 1, "dial": 1})
     assert s["lid"] == {"count": 1} and s["door"] == {"count": 0} and s["dial"] == {"count": 1}
+
+
+def test_the_open_counts_come_from_the_reading_with_the_plan_held(shipped, monkeypatch):
+    """The network's own reading that fills the counts a prompt leaves open is decoded as
+    free text is: with the START plan head's counts held (``hold_plan``), else the soft plan."""
+    am = shipped.articulation
+    seen, decode = [], am.decode
+
+    def spy(*a, **kw):
+        seen.append(kw.get("follow_plan"))
+        return decode(*a, **kw)
+
+    monkeypatch.setattr(am, "decode", spy)
+    shipped.decode_trees("a microwave with a keypad", seed=0)
+    assert seen[0] == "hold"                  # the reading first, then the held structure
+    saved = shipped.config
+    shipped.config = dataclasses.replace(saved, hold_plan=False)
+    try:
+        seen.clear()
+        shipped.decode_trees("a microwave with a keypad", seed=0)
+        assert seen[0] is True
+    finally:
+        shipped.config = saved

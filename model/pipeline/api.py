@@ -52,9 +52,10 @@ class GenerationConfig:
                                        # Chosen on val: it helps text (0.8125 -> 0.8425), not
                                        # images (START head 0.35 -> 0.335; count head
                                        # 0.425 -> 0.4175), so images decode freely
-    hold_plan: bool = True             # text with no stated structure: decoded again with the
-                                       # START plan head's counts held as a structure
-                                       # (decode.py, follow_plan="hold"); chosen on val:
+    hold_plan: bool = True             # text: decoded again with the START plan head's
+                                       # counts held as a structure (decode.py,
+                                       # follow_plan="hold"; for stated counts, the reading
+                                       # that fills the counts left open); chosen on val:
                                        # alignment 0.947 -> 0.964 (docs/articulation.md)
     frame_images: bool = True          # crop a photo with a plain background around its
                                        # object, as the training renders frame it

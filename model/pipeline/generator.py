@@ -258,7 +258,8 @@ class Generator:
             [free] = am.decode(cond, mask, seed=seed, max_nodes=cfg.max_nodes,
                                max_depth=cfg.max_depth, max_children=cfg.max_children,
                                modality="text", temperature=cfg.structure_temperature,
-                               follow_plan="text" in cfg.follow_plan)
+                               follow_plan=(("hold" if cfg.hold_plan else True)
+                                            if "text" in cfg.follow_plan else False))
         order = ([expected.category] if expected.category in cats else
                  [free.category] + [c for c in cats if c != free.category])
         return resolve_prompt_structure(am, expected, order, max_nodes=cfg.max_nodes,

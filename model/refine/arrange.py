@@ -31,8 +31,8 @@ import numpy as np
 from model.core import ArticulatedObject
 from model.data.expected_structure import ARRANGEMENT_KEYS
 
-from .layout import (CLEAR, GAP, ON_FACE, PANELS, SIDE_HINGED, _lohi, _move_subtree, _union,
-                     face_of, frame_of)
+from .layout import (CLEAR, GAP, MIN_SIDE, ON_FACE, PANELS, SIDE_HINGED, _lohi, _move_subtree,
+                     _union, face_of, frame_of)
 
 GAP_SHARE = 0.06       # of a cell's side, between neighbouring cells
 KEY = 0.03             # m: a keypad key's side at most (the data's safe keys: 2.2 cm at most)
@@ -528,10 +528,11 @@ def _lay_out(obj: ArticulatedObject, group: list[int], per_row: list[int],
     lo, hi = lo - (gap or 0.0) / 2, hi + (gap or 0.0) / 2
     own = np.median([obj.parts[i].bbox_size for i in group], axis=0)   # controls keep theirs
     if all(obj.parts[i].label in ON_FACE for i in group):
-        # cells of controls at least PITCH of their size: a column of two 5 mm buttons
-        # decoded touching gets room between them (the rectangle grows about its middle)
+        # a control's cell holds the thinnest box a part keeps with GAP either side: two
+        # 5 mm buttons decoded touching get room (the rectangle grows about its middle);
+        # larger controls shrink into their cells as before
         for ax, n in ((H, max(per_row)), (V, len(per_row))):
-            need = PITCH * float(own[ax]) * n
+            need = (MIN_SIDE + 2 * GAP) * n
             if hi[ax] - lo[ax] < need:
                 mid = (lo[ax] + hi[ax]) / 2
                 lo[ax], hi[ax] = mid - need / 2, mid + need / 2
