@@ -323,7 +323,9 @@ def _slide(obj: ArticulatedObject, i: int, face: tuple[int, float]) -> None:
     travel = float(max(abs(j.t_range[0]), abs(j.t_range[1])))
     if p.label in SLIDERS:
         j.axis = np.eye(3)[k] * s
-        low = DRAWER_MIN_TRAVEL if p.label == "drawer" else 0.0   # trays: their rack's own
+        # trays keep their rack's own travel, as does a drawer on a top face (it would
+        # lift out into whatever stands over it)
+        low = DRAWER_MIN_TRAVEL if p.label == "drawer" and k != 2 else 0.0
         travel = float(np.clip(travel, low * float(p.bbox_size[k]),
                                0.9 * float(p.bbox_size[k])))      # stays in its opening
     else:                                                     # buttons press in
