@@ -440,3 +440,21 @@ def test_controls_stated_one_above_the_other_keep_their_size():
                 alo, ahi = a.bbox_center - a.bbox_size / 2, a.bbox_center + a.bbox_size / 2
                 blo, bhi = b.bbox_center - b.bbox_size / 2, b.bbox_center + b.bbox_size / 2
                 assert not np.all((alo < bhi - 1e-6) & (blo < ahi - 1e-6)), (a.name, b.name)
+
+
+def test_a_stated_grid_gathers_members_the_network_put_under_the_body():
+    """Twelve doors "6 across x 2 down", five decoded on the front and seven on the body's
+    bottom face (no front holds most of them): all twelve go onto the front's grid."""
+    parts = [_part("body_0", "body", -1, (0.4, 1.2, 0.6), (0, 0, 0.3))]
+    for n in range(12):
+        y = -0.5 + 0.2 * (n % 6)
+        if n < 5:
+            parts.append(_door(n, (0.02, 0.18, 0.25), (0.21, y, 0.45), (0.22, y - 0.09, 0.45)))
+        else:
+            parts.append(_door(n, (0.3, 0.18, 0.1), (0.0, y, -0.05), (0.0, y - 0.09, -0.1)))
+    obj = ArticulatedObject(category="StorageFurniture", name="mail", parts=parts)
+    before = _structure(obj)
+    _layout(obj, "mail-slot style cabinet w/ 12 small doors, 6 across x 2 down")
+    doors = [i for i, p in enumerate(obj.parts) if p.label == "door"]
+    assert _grid_of(obj, doors) == ("grid", 2, 6)
+    assert _structure(obj) == before

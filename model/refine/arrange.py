@@ -477,9 +477,11 @@ def _grid(facts: dict, n: int) -> Optional[list[int]]:
     return per if per[-1] >= 1 else None
 
 
-def _front_group(obj: ArticulatedObject, label: str, every: bool = True) -> Optional[list[int]]:
+def _front_group(obj: ArticulatedObject, label: str, every: bool = True,
+                 largest: bool = False) -> Optional[list[int]]:
     """The parts of ``label`` on one parent's front or back face: all of them (``every``:
-    None unless all are there), or those on the face most of them share."""
+    None unless all are there), or those on the face most of them share (``largest``: the
+    face most of those on a front or back face share, however few)."""
     idx = [i for i, p in enumerate(obj.parts) if p.label == label]
     where: dict = {}
     for i in idx:
@@ -491,16 +493,17 @@ def _front_group(obj: ArticulatedObject, label: str, every: bool = True) -> Opti
     best = max(where.values(), key=len)
     if every:
         return best if len(best) == len(idx) else None
-    return best if 2 * len(best) > len(idx) else None
+    return best if largest or 2 * len(best) > len(idx) else None
 
 
 def _grid_group(obj: ArticulatedObject, label: str) -> Optional[list[int]]:
     """Every part of ``label``, for a stated grid, on the front or back face of one parent
-    that most of them share; members the network decoded on another face of that parent (a
-    locker door on the side, a keypad button pressing upwards) are moved onto it first, with
+    that most of those on a front or back face share; members the network decoded on
+    another face of that parent (a locker door on the side, a keypad button pressing
+    upwards, six of twelve doors on the bottom) are moved onto it first, with
     the depth and joint axis of a member of their joint type. None where a member has another
     parent (the tree never changes) or no member on the face shares its joint type."""
-    group = _front_group(obj, label, every=False)
+    group = _front_group(obj, label, every=False, largest=True)
     if group is None:
         return None
     rest = [i for i, p in enumerate(obj.parts) if p.label == label and i not in group]
