@@ -47,6 +47,7 @@ def __getattr__(name: str):
 
 
 PLAN_ADD_MARGIN = 3.0   # follow_plan adds a child the END head gave p > sigmoid(-3) ~ 5 %
+SET_ASIDE = 4           # structure control: proposals of a ruled-out label set aside per row
 SIBLING_OVERLAP = 0.1   # sibling_room: boxes sharing more than this share of the smaller
                         # box's volume collide (siblings in the data touch at most)
 LABEL_TAU = 0.1         # the label head's softmax scale: training's label cross-entropy reads
@@ -95,6 +96,9 @@ def decode_trees(am: "ArticulationModel", cond_tokens: torch.Tensor, cond_mask: 
         _rounds(am, rows, gens, memory, modality, max_rounds, max_nodes, max_depth,
                 max_children, temperature, follow_plan, structure, sample_choices,
                 dropout_sampling, sibling_room)
+    if structure is not None:
+        for r in rows:
+            _drop_set_aside(r)
     trees = [finish_row(am, r) for r in rows]
     if structure is not None:
         _settle_structure(rows, trees)
@@ -149,8 +153,10 @@ def _start_rows(am: "ArticulationModel", S: int, keep, max_nodes: int,
         for r in rows:
             # cat: the category the root picked; names: label per node; need: label -> parts
             # still missing; hinge_i: label -> hinge sides used; sides: hinge side per node
+            # aside: per node, whether it is a proposal set aside (_set_aside)
             r["struct"] = {"plan": structure, "cat": None, "names": [],
-                           "need": dict(structure.counts), "hinge_i": {}, "sides": []}
+                           "need": dict(structure.counts), "hinge_i": {}, "sides": [],
+                           "aside": []}
     if plan is not None:
         plan = torch.as_tensor(plan, dtype=torch.long)
         want = (S, len(am.cfg.count_labels or []))
@@ -377,13 +383,80 @@ def _grow_structured(am: "ArticulationModel", row: dict, out: dict, gen: torch.G
         if not wants and not forced:
             row["done"][t] = True
             continue
-        li = _sample_label(am, out["cs"][t].float(), row["struct"]["cat"], forced or can, gen,
+        pool = forced or can
+        own = _own_label(am, out["cs"][t].float(), row["struct"]["cat"])
+        if am.table_labels[own] not in pool:
+            kin = [lab for lab in pool if _kin(am.table_labels[own], lab)]
+            if kin:
+                pool = kin          # renamed within its kind (a cap held as a flip lid)
+            elif wants and _set_aside(am, row, out, t, own, max_nodes, max_children):
+                continue
+        li = _sample_label(am, out["cs"][t].float(), row["struct"]["cat"], pool, gen,
                            label_temperature)
         lab = am.table_labels[li]
         jt = _structured_joint(row, lab, out["jt"][t].float(), temperature, gen)
         _add_node(am, row, out, t, li, jt, row["depth"][t - 1] + 1)
         if lab in row["struct"]["plan"].hinges:
             _hinge_last(am, row, lab)
+
+
+# labels of one kind: parts of one size and place, so that a proposal of one is renamed
+# to another the structure needs (a bottle's cap held as its flip lid). Fronts are not one
+# kind (a washer's 5 cm soap drawer held as its door is no door), nor are controls (a
+# button renamed to the washer's one dial took it from the network's own dial proposal)
+KINDS = (("cap", "lid"),)
+
+
+def _kin(a: str, b: str) -> bool:
+    return any(a in kind and b in kind for kind in KINDS)
+
+
+def _own_label(am: "ArticulationModel", cs_raw: torch.Tensor, cat: str) -> int:
+    """Label-table index of the label of ``cat`` nearest to a proposal's c_s (all labels)."""
+    d2 = ((am.table_cs_n - cs_raw) ** 2).mean(-1)
+    idx = [i for i, c in enumerate(am.table_categories) if c == cat]
+    return min(idx, key=lambda i: float(d2[i]))
+
+
+def _set_aside(am: "ArticulationModel", row: dict, out: dict, t: int, li: int,
+               max_nodes: int, max_children: int) -> bool:
+    """A proposal whose own label ``li`` the structure rules out here, with no label of its
+    kind to take instead (a button where the prompt says "no buttons" while a door is still
+    needed) is not renamed: a door held on a button's 2 cm box is no door. It is added as a
+    leaf that decoding sees (so the node's next proposal is the part after it, as the
+    network would go on) and that the tree drops at the end (:func:`_drop_set_aside`). At
+    most SET_ASIDE per row, and only while the node caps leave room for every part still
+    needed. -> whether it was set aside."""
+    st = row["struct"]
+    if sum(st["aside"]) >= SET_ASIDE:
+        return False
+    need = sum(st["need"].values())
+    if len(row["tok"]) + 1 + need > max_nodes or row["nkids"][t] + 1 + need > max_children:
+        return False
+    push_child(am, row, out, t, li, int(out["jt"][t].argmax()), row["depth"][t - 1] + 1)
+    row["done"][-1] = True            # a leaf: nothing hangs on a part that is dropped
+    st["names"].append(am.table_labels[li])
+    st["sides"].append(None)
+    st["aside"].append(True)
+    return True
+
+
+def _drop_set_aside(row: dict) -> None:
+    """Remove the leaves :func:`_set_aside` added from a finished row (in place)."""
+    aside = row["struct"]["aside"]
+    if not any(aside):
+        return
+    keep = [n for n, a in enumerate(aside) if not a]
+    new = {old: k for k, old in enumerate(keep)}
+    for key in ("tok", "jt", "cs", "cs_raw", "geo", "depth", "lab", "kept", "src"):
+        row[key] = [row[key][n] for n in keep]
+    row["par"] = [new[row["par"][n]] if row["par"][n] >= 0 else -1 for n in keep]
+    row["nkids"] = [row["nkids"][0]] + [sum(p == k for p in row["par"]) for k in range(len(keep))]
+    row["done"] = [row["done"][0]] + [row["done"][n + 1] for n in keep]
+    st = row["struct"]
+    st["names"] = [st["names"][n] for n in keep]
+    st["sides"] = [st["sides"][n] for n in keep]
+    st["aside"] = [False] * len(keep)
 
 
 def _add_body(am: "ArticulationModel", row: dict, out: dict, gen: torch.Generator,
@@ -462,6 +535,7 @@ def _add_node(am: "ArticulationModel", row: dict, out: dict, t: int, li: int, jt
         st["need"][lab] -= 1
     push_child(am, row, out, t, li, jt, depth)
     st["sides"].append(None)
+    st["aside"].append(False)
 
 
 def _hinge_last(am: "ArticulationModel", row: dict, lab: str) -> None:
