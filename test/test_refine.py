@@ -443,6 +443,17 @@ def test_a_drawer_slides_out_between_half_and_most_of_its_depth(decoded, kept):
     assert obj.parts[1].joint.t_range == pytest.approx((0.0, kept))
 
 
+def test_a_drawer_on_a_top_face_keeps_its_decoded_travel():
+    """A drawer the network put on the body's top, sliding up, is not raised to half its
+    depth: it would lift into whatever stands over it (a wardrobe's doors stalled it)."""
+    obj = ArticulatedObject(category="StorageFurniture", name="o", parts=[
+        _part("body_0", "body", -1, (0.42, 0.6, 0.8), (0, 0, 0.4)),
+        _part("drawer_0", "drawer", 0, (0.3, 0.5, 0.4), (0, 0, 0.61),
+              Joint(JointType.PRISMATIC, (0, 0, 0.81), (0, 0, 1), t_range=(0, 0.05)))])
+    refine_layout(obj)
+    assert obj.parts[1].joint.t_range == pytest.approx((0.0, 0.05))
+
+
 def test_a_knob_cut_into_a_slab_is_round_again():
     """A knob decoded 20 cm wide, 1.5 cm tall and 10 cm deep on an oven's front: a square
     1.5 cm footprint about its centre, no deeper than that, its back still on the face."""
