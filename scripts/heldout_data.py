@@ -35,7 +35,6 @@ def main(argv=None) -> int:
     import multiprocessing as mp
 
     from model.data import preprocess as pp
-    from model.data.format import atomic_write_json, load_record
     from model.data.synth.config import SynthConfig
     from model.data.synth.dataset import _synth_one
 
@@ -61,22 +60,8 @@ def main(argv=None) -> int:
         res = pool.map(pp._worker, jobs, chunksize=2)
     errors = {r["id"]: r["error"] for r in res if "error" in r}
     done = [ids[k] for k in todo if pp._is_done(Path(a.out), ids[k])]
-    recs = [load_record(a.out, i) for i in done]
-    from model.data import vocab
-    manifest = {
-        "format": pp.FORMAT_VERSION, "data_version": a.version, "source": a.synth,
-        "seed": a.seed, "splits": {s: sorted(i for i in done if splits[i] == s)
-                                   for s in ("train", "val", "test")},
-        "labels": sorted({lab for r in recs for lab in r.labels}),
-        "categories": sorted({r.category for r in recs}),
-        "vocab_labels": list(vocab.LABELS), "vocab_categories": list(vocab.CATEGORIES),
-        "points_per_part": pcfg.points, "sdf_samples_per_part": pcfg.samples,
-        "sdf_uniform_share": pcfg.uniform_share, "sdf_sigma": pcfg.sigma,
-        "unit_half": pp.UNIT_HALF, "sample_half": pp.SAMPLE_HALF, "errors": errors,
-        "heldout_only": want,
-        "last_run": {"processed": len(jobs), "seconds": round(time.time() - t0, 1)},
-    }
-    atomic_write_json(Path(a.out) / "manifest.json", manifest)
+    pp.write_manifest(pcfg, splits, done, errors, processed=len(jobs),
+                      seconds=time.time() - t0, extra={"heldout_only": want})
     print(f"{len(done)} objects ({', '.join(want)}) in {a.out}: synth {t_synth:.0f} s, "
           f"total {time.time() - t0:.0f} s, {len(errors)} prepare errors")
     return 0

@@ -384,7 +384,9 @@ def _grow_structured(am: "ArticulationModel", row: dict, out: dict, gen: torch.G
             row["done"][t] = True
             continue
         pool = forced or can
-        own = _own_label(am, out["cs"][t].float(), row["struct"]["cat"])
+        # the proposal's own label: the nearest of all its category's labels
+        own = _sample_label(am, out["cs"][t].float(), row["struct"]["cat"], am.table_labels,
+                            gen, 0.0)
         if am.table_labels[own] not in pool:
             kin = [lab for lab in pool if _kin(am.table_labels[own], lab)]
             if kin:
@@ -409,13 +411,6 @@ KINDS = (("cap", "lid"),)
 
 def _kin(a: str, b: str) -> bool:
     return any(a in kind and b in kind for kind in KINDS)
-
-
-def _own_label(am: "ArticulationModel", cs_raw: torch.Tensor, cat: str) -> int:
-    """Label-table index of the label of ``cat`` nearest to a proposal's c_s (all labels)."""
-    d2 = ((am.table_cs_n - cs_raw) ** 2).mean(-1)
-    idx = [i for i, c in enumerate(am.table_categories) if c == cat]
-    return min(idx, key=lambda i: float(d2[i]))
 
 
 def _set_aside(am: "ArticulationModel", row: dict, out: dict, t: int, li: int,

@@ -22,6 +22,7 @@ import os
 import time
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import Optional
 
 import numpy as np
 
@@ -215,8 +216,6 @@ def prepare_dataset(cfg: PrepareConfig, progress: bool = True) -> dict:
 
     Resumable: objects whose record and arrays exist are skipped. Parallel over objects.
     """
-    from model.data import vocab
-    from model.data.format import load_record
     from model.data.partnet import find_object_folders
 
     src, out = Path(cfg.src), Path(cfg.out)
@@ -259,6 +258,18 @@ def prepare_dataset(cfg: PrepareConfig, progress: bool = True) -> dict:
     if bar:
         bar.close()
     done = [i for i in ids if _is_done(out, i)]
+    return write_manifest(cfg, splits, done, errors, processed=len(todo),
+                          seconds=time.time() - t0)
+
+
+def write_manifest(cfg: PrepareConfig, splits: dict[str, str], done: list[str], errors: dict,
+                   *, processed: int, seconds: float, extra: Optional[dict] = None) -> dict:
+    """Write ``cfg.out/manifest.json`` for the prepared objects ``done`` (id -> split in
+    ``splits``) and return it; ``extra`` keys are added as given."""
+    from model.data import vocab
+    from model.data.format import load_record
+
+    src, out = Path(cfg.src), Path(cfg.out)
     labels, cats = set(), set()
     for i in done:
         rec = load_record(out, i)
@@ -275,7 +286,8 @@ def prepare_dataset(cfg: PrepareConfig, progress: bool = True) -> dict:
         "points_per_part": cfg.points, "sdf_samples_per_part": cfg.samples,
         "sdf_uniform_share": cfg.uniform_share, "sdf_sigma": cfg.sigma, "unit_half": UNIT_HALF,
         "sample_half": SAMPLE_HALF, "config": cfg_d, "errors": errors,
-        "last_run": {"processed": len(todo), "seconds": round(time.time() - t0, 1)},
+        "last_run": {"processed": processed, "seconds": round(seconds, 1)},
+        **(extra or {}),
     }
     atomic_write_json(out / "manifest.json", manifest)
     return manifest

@@ -224,9 +224,8 @@ class Generator:
                                    max_nodes=cfg.max_nodes, max_depth=cfg.max_depth,
                                    max_children=cfg.max_children, modality=modality, keep=keep,
                                    temperature=cfg.structure_temperature,
-                                   follow_plan=(("hold" if cfg.hold_plan else True)
-                                                if modality == "text"
-                                                and "text" in cfg.follow_plan else False),
+                                   follow_plan=(_text_plan(cfg) if modality == "text"
+                                                else False),
                                    plan=plan, structure=splan,
                                    sample_choices=cfg.sample_choices,
                                    sibling_room=cfg.sibling_room,
@@ -258,8 +257,7 @@ class Generator:
             [free] = am.decode(cond, mask, seed=seed, max_nodes=cfg.max_nodes,
                                max_depth=cfg.max_depth, max_children=cfg.max_children,
                                modality="text", temperature=cfg.structure_temperature,
-                               follow_plan=(("hold" if cfg.hold_plan else True)
-                                            if "text" in cfg.follow_plan else False))
+                               follow_plan=_text_plan(cfg))
         order = ([expected.category] if expected.category in cats else
                  [free.category] + [c for c in cats if c != free.category])
         return resolve_prompt_structure(am, expected, order, max_nodes=cfg.max_nodes,
@@ -425,6 +423,14 @@ class Generator:
         exported.preview_path = path
         result.timings["preview"] = time.perf_counter() - t
         return path
+
+
+def _text_plan(cfg: GenerationConfig):
+    """``decode``'s ``follow_plan`` for text: the plan held ("hold"), followed softly
+    (True), or not used (False)."""
+    if "text" not in cfg.follow_plan:
+        return False
+    return "hold" if cfg.hold_plan else True
 
 
 def _keep_hinge_sides(obj: ArticulatedObject, sides: Optional[list]) -> None:
