@@ -146,6 +146,32 @@ def test_raw_simplification_adds_no_pieces():
     assert _largest_pieces(three, 3) is three
 
 
+
+def test_a_part_that_no_tolerance_closes_is_written_from_its_rebuilt_manifold():
+    """A carved manifold can mesh open through every simplify tolerance (an oven body kept
+    a triangle of vertices 0.2 micrometres apart) while the same manifold rebuilt from its
+    float64 mesh closes: the written mesh is the rebuilt one's, closed."""
+    from types import SimpleNamespace
+
+    from model.core import meshops
+    from model.refine.meshes import _closed_on_export
+    box = meshops.to_manifold(trimesh.creation.box((0.4, 0.3, 0.2)))
+
+    class Stale:                     # meshes open (one triangle gone), rebuilds closed
+        def to_mesh(self):
+            m = box.to_mesh()
+            return SimpleNamespace(vert_properties=m.vert_properties,
+                                   tri_verts=np.asarray(m.tri_verts)[1:])
+
+        def simplify(self, tol):
+            return self
+
+        def to_mesh64(self):
+            return box.to_mesh64()
+    out = _closed_on_export(Stale())
+    out.merge_vertices()
+    assert out.is_watertight and out.volume == pytest.approx(0.024, rel=1e-6)
+
 @pytest.mark.parametrize("budget", [200_000, 12_000, 3_000, 900])
 def test_simplification_steps_made_ahead_stop_where_the_budget_loop_stops(budget):
     # the meshing lanes make the first steps per part (prepare.py); refinement must still
@@ -496,6 +522,28 @@ def test_knobs_decoded_as_two_overlapping_rows_become_one_row():
         for n, (y, z) in enumerate([(0.0, 0.3), (0.025, 0.3), (0.0, 0.268), (0.03, 0.268)])])
     refine_layout(keypad)
     assert len({round(float(p.bbox_center[2]), 6) for p in keypad.parts[1:]}) == 2
+
+
+def test_a_row_of_knobs_lifted_off_a_door_does_not_climb_into_the_row_above():
+    """"A gas range with six knobs, 2 rows of 3": the lower row stands 9 mm over the
+    drop-down door's top edge and 7 mm below the upper row. Lifting it clear of the door
+    would put it onto the upper row, so the door gives way and both rows keep their
+    places."""
+    def knob(y, z):
+        return _part(f"knob_{y}_{z}", "knob", 0, (0.039, 0.064, 0.064), (0.3235, y, z),
+                     Joint(JointType.CONTINUOUS, (0.304, y, z), (1, 0, 0)))
+    rows = [(y, z) for z in (0.914, 0.843) for y in (0.268, 0.083, -0.102)]
+    oven = ArticulatedObject(category="Oven", name="range", parts=[
+        _part("body_0", "body", -1, (0.6, 0.6, 0.95), (0.004, 0, 0.475)),
+        _part("door_0", "door", 0, (0.036, 0.56, 0.762), (0.286, 0, 0.439),
+              Joint(JointType.REVOLUTE, (0.304, 0, 0.058), (0, 1, 0), r_range=(0, 1.5)))] +
+        [knob(y, z) for y, z in rows])
+    refine_layout(oven, stated={"knob": {"layout": "grid", "rows": 2, "columns": 3}})
+    knobs, door = oven.parts[2:], oven.parts[1]
+    assert sorted({round(float(p.bbox_center[2]), 4) for p in knobs}) == [0.843, 0.914]
+    assert not any(_boxes_overlap(a, b) for n, a in enumerate(knobs) for b in knobs[n + 1:])
+    assert not any(_boxes_overlap(k, door) for k in knobs)
+    assert door.bbox_center[2] + door.bbox_size[2] / 2 < 0.811
 
 
 def test_a_screw_cap_sweeps_a_solid_of_revolution_that_holds_it_over_its_travel():

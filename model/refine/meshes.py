@@ -542,14 +542,17 @@ def _pieces(mesh, lab, keep):
     return out
 
 
-def _closed_on_export(man):
+def _closed_on_export(man, rebuilt: bool = False):
     """A refined part (Manifold) as its mesh is written: zero-area slivers dropped, and
     sheets that touch only by vertex identity held micrometres apart
     (meshops.separate_coincident) where a reader that merges vertices would otherwise see
     it open. Exact booleans can also leave vertices that share a position and needle faces
     that no cleanup of the triangles closes; then the manifold simplified by 0.1, then 1
     micrometre is tried (a generated USB body carved by its swivel cap: 3 open edges
-    before, closed after). The first closed candidate wins, else the plain cleanup."""
+    before, closed after). Where none closes, the same again on the manifold rebuilt from
+    its own float64 mesh (an oven body carved by its door kept a triangle of vertices
+    0.2 micrometres apart through every tolerance; rebuilt, it closed). The first closed
+    candidate wins, else the plain cleanup."""
     first = None
     for tol in (0.0, 1e-7, 1e-6):
         mesh = meshops.to_trimesh(man.simplify(tol) if tol else man)
@@ -560,6 +563,10 @@ def _closed_on_export(man):
         apart = meshops.drop_degenerate(meshops.separate_coincident(mesh))
         if _merged_closed(apart):
             return apart
+    if not rebuilt:
+        again = _closed_on_export(meshops.unpack(meshops.pack(man)), rebuilt=True)
+        if _merged_closed(again):
+            return again
     return first
 
 

@@ -344,7 +344,8 @@ def _clear_panels(obj: ArticulatedObject, members: list[int], k: int) -> int:
     meshes (an oven door stalled on the knob 3 mm above it). A small part closer than that
     moves away along the axis it stands beside the panel on, or, when it stands in front of
     the panel, off its outline the shortest way, within its parent's face; where it cannot
-    move, the panel gives way on that side. Beside the edges that swing out (across the
+    move, or the move would bring it onto another control (a row of knobs above the one it
+    belongs to), the panel gives way on that side. Beside the edges that swing out (across the
     hinge axis: the top edge of a drop-down door, the free edge of a side-hinged one) the
     panel then gives way to ``CLEAR_SWING``: the collision pieces are cells of the part's
     meshing grid (a centimetre on a 70 cm door), and a drop-down door's top edge clipped
@@ -354,6 +355,7 @@ def _clear_panels(obj: ArticulatedObject, members: list[int], k: int) -> int:
     plo, phi = _lohi(obj.parts[obj.parts[members[0]].parent])
     moved = 0
     ins = [d for d in range(3) if d != k]
+    controls = [obj.parts[c] for c in members if obj.parts[c].label in CONTROLS]
 
     def give_way(panel, q, n: int, clear: float) -> None:
         lo, hi = _lohi(panel)
@@ -386,7 +388,10 @@ def _clear_panels(obj: ArticulatedObject, members: list[int], k: int) -> int:
                     up = q.bbox_center[d] > panel.bbox_center[d]
                     new = q.bbox_center[d] + (CLEAR - gaps[n]) * (1.0 if up else -1.0)
                     if plo[d] + q.bbox_size[d] / 2 <= new <= phi[d] - q.bbox_size[d] / 2:
-                        q.bbox_center[d] = new
+                        if _onto_controls(q, d, new, controls):   # its row stays: the panel
+                            give_way(panel, q, n, CLEAR)           # gives way instead
+                        else:
+                            q.bbox_center[d] = new
                         break
                 else:            # no room to move it: the panel gives way on that side
                     give_way(panel, q, order[0], CLEAR)
@@ -403,6 +408,22 @@ def _clear_panels(obj: ArticulatedObject, members: list[int], k: int) -> int:
                 give_way(panel, q, n, need)
                 moved += 1
     return moved
+
+
+def _onto_controls(q, d: int, centre: float, controls: list) -> bool:
+    """Whether moving control ``q``'s centre to ``centre`` along axis ``d`` brings it within
+    GAP of another control it stands clear of now (the lower row of "six knobs, 2 rows of
+    3" lifted off an oven door into the upper row)."""
+    moved = q.bbox_center.copy()
+    moved[d] = centre
+    lo, hi = moved - q.bbox_size / 2, moved + q.bbox_size / 2
+    for o in controls:
+        if o is q or _overlap(q, o, -GAP):
+            continue
+        olo, ohi = _lohi(o)
+        if np.all(lo < ohi + GAP) and np.all(olo < hi + GAP):
+            return True
+    return False
 
 
 def _overlap(a, b, pad: float = 0.0) -> bool:
