@@ -35,6 +35,13 @@ def _grid_of(obj, group):
     return got["layout"], got["rows"], got["columns"]
 
 
+def _layout_same(obj, prompt):
+    """:func:`_layout`, and the object's structure is what it was."""
+    before = _structure(obj)
+    _layout(obj, prompt)
+    assert _structure(obj) == before
+
+
 def _layout(obj, prompt):
     """What Generator.layout does with a prompt's facts."""
     facts = parse_prompt(prompt).spatial
@@ -63,11 +70,9 @@ def test_six_drawers_decoded_in_one_column_end_up_in_two_columns():
         parts.append(_drawer(n, (0.05, 0.0, 0.85 - 0.13 * n)))
     parts.append(_part("handle_0", "handle", 1, (0.03, 0.1, 0.02), (0.27, 0.0, 0.85)))
     obj = ArticulatedObject(category="StorageFurniture", name="sideboard", parts=parts)
-    before = _structure(obj)
-    _layout(obj, "a sideboard with six small drawers in two columns")
+    _layout_same(obj, "a sideboard with six small drawers in two columns")
     drawers = [i for i, p in enumerate(obj.parts) if p.label == "drawer"]
     assert _grid_of(obj, drawers) == ("grid", 3, 2)
-    assert _structure(obj) == before
     handle, drawer = obj.parts[-1], obj.parts[1]
     lo, hi = drawer.bbox_center - drawer.bbox_size / 2, drawer.bbox_center + drawer.bbox_size / 2
     assert np.all(handle.bbox_center[1:] >= lo[1:]) and np.all(handle.bbox_center[1:] <= hi[1:])
@@ -91,11 +96,9 @@ def _door_and_drawers(door_y, drawer_y):
 
 def test_a_door_stated_on_the_left_is_mirrored_there_and_still_opens_outwards():
     obj = _door_and_drawers(door_y=0.25, drawer_y=-0.25)          # the door on the right
-    before = _structure(obj)
-    _layout(obj, "a kitchen cabinet with three drawers and a door on the left")
+    _layout_same(obj, "a kitchen cabinet with three drawers and a door on the left")
     assert part_position(obj, 1)[0] == "left"
     assert all(part_position(obj, i)[0] == "right" for i in (2, 3, 4))
-    assert _structure(obj) == before
     door = obj.parts[1]
     T = door.joint.transform(0.0, 1.0)                            # open by 1 rad
     free = door.bbox_center + np.array([0.0, 0.2, 0.0])          # away from the hinge
@@ -138,10 +141,8 @@ def test_drawers_stated_across_the_top_are_stacked_above_the_doors_they_were_amo
                            Joint(JointType.REVOLUTE, (0.25, y + 0.27, 0.5), (0, 0, 1),
                                  r_range=(0, 1.6))))
     obj = ArticulatedObject(category="StorageFurniture", name="sideboard", parts=parts)
-    before = _structure(obj)
-    _layout(obj, "a sideboard: three drawers across the top and two doors below them")
+    _layout_same(obj, "a sideboard: three drawers across the top and two doors below them")
     assert is_above(spatial_summary(obj), "drawer", "door")
-    assert _structure(obj) == before
     boxes = [(p.bbox_center - p.bbox_size / 2, p.bbox_center + p.bbox_size / 2)
              for p in obj.parts[1:]]
     for a in range(len(boxes)):
@@ -161,13 +162,11 @@ def test_a_door_stated_on_the_left_between_drawer_columns_gets_the_left_band():
         _drawer(1, (0.05, 0.4, 0.6), (0.4, 0.35, 0.25)),
         _drawer(2, (0.05, 0.4, 0.3), (0.4, 0.35, 0.25)),
     ])
-    before = _structure(obj)
-    _layout(obj, "a kitchen cabinet with three drawers and a door on the left")
+    _layout_same(obj, "a kitchen cabinet with three drawers and a door on the left")
     door_right = obj.parts[1].bbox_center[1] + obj.parts[1].bbox_size[1] / 2
     assert part_position(obj, 1)[0] == "left"
     assert all(p.bbox_center[1] - p.bbox_size[1] / 2 >= door_right - 1e-9 for p in obj.parts[2:])
     assert len({round(float(p.bbox_center[1]), 3) for p in obj.parts[2:]}) == 2   # 2 columns
-    assert _structure(obj) == before
 
 
 def test_a_door_beside_a_drawer_stack_it_was_decoded_under_gets_the_stacks_height():
@@ -180,8 +179,7 @@ def test_a_door_beside_a_drawer_stack_it_was_decoded_under_gets_the_stacks_heigh
         _drawer(0, (0.05, 0.0, 0.9), (0.4, 0.95, 0.15)),
         _drawer(1, (0.05, 0.0, 0.75), (0.4, 0.95, 0.15)),
     ])
-    before = _structure(obj)
-    _layout(obj, "small bedside cabinet with a door, and two drawers stacked to the right "
+    _layout_same(obj, "small bedside cabinet with a door, and two drawers stacked to the right "
                  "of the door")
     sp = spatial_summary(obj)
     assert sp["door"]["hpos"] == ["left"] and sp["drawer"]["hpos"] == ["right"]
@@ -191,7 +189,6 @@ def test_a_door_beside_a_drawer_stack_it_was_decoded_under_gets_the_stacks_heigh
     bottom = min(p.bbox_center[2] - p.bbox_size[2] / 2 for p in obj.parts[2:])
     assert door.bbox_center[2] + door.bbox_size[2] / 2 == pytest.approx(top, abs=0.02)
     assert door.bbox_center[2] - door.bbox_size[2] / 2 == pytest.approx(bottom, abs=0.02)
-    assert _structure(obj) == before
 
 
 def _locker_door(n, centre, size, axis=(0, 0, 1)):
@@ -210,15 +207,13 @@ def test_a_stated_grid_gathers_doors_decoded_on_the_side_onto_the_front():
     parts.append(_locker_door(8, (0.0, 0.31, 0.5), (0.3, 0.02, 0.25), axis=(0, 1, 0)))
     parts.append(_locker_door(9, (0.05, -0.31, 0.4), (0.25, 0.02, 0.3), axis=(1, 0, 0)))
     obj = ArticulatedObject(category="StorageFurniture", name="lockers", parts=parts)
-    before = _structure(obj)
-    _layout(obj, "gym lockers -- 10 doors, two rows of five")
+    _layout_same(obj, "gym lockers -- 10 doors, two rows of five")
     doors = [i for i, p in enumerate(obj.parts) if p.label == "door"]
     assert _grid_of(obj, doors) == ("grid", 2, 5)
     for i in doors:
         p = obj.parts[i]
         assert p.bbox_center[0] > 0.19 and p.bbox_size[0] < min(p.bbox_size[1:])
         assert abs(p.joint.axis[2]) == pytest.approx(1.0)        # side-hinged on the front
-    assert _structure(obj) == before
 
 
 def _safe_door_with_keypad(handle_z):
@@ -382,14 +377,12 @@ def test_a_drawer_decoded_on_the_side_is_turned_onto_the_front_to_be_banded():
         _part("drawer_0", "drawer", 0, (0.7, 0.4, 0.3), (0.0, -0.25, 0.5),
               Joint(JointType.PRISMATIC, (0.0, -0.25, 0.5), (0, -1, 0), t_range=(0, 0.3))),
     ])
-    before = _structure(obj)
-    _layout(obj, "kitchen base cabinet with one drawer at the top and two doors below it")
+    _layout_same(obj, "kitchen base cabinet with one drawer at the top and two doors below it")
     drawer = obj.parts[3]
     assert abs(drawer.joint.axis[0]) == pytest.approx(1.0) and drawer.joint.axis[0] > 0
     assert drawer.bbox_center[0] + drawer.bbox_size[0] / 2 == pytest.approx(0.25, abs=0.03)
     sp = spatial_summary(obj)
     assert sp["drawer"]["vpos"] == ["top"] and is_above(sp, "drawer", "door")
-    assert _structure(obj) == before
 
 
 def test_a_drawer_stated_in_a_corner_goes_above_and_then_to_its_side():
@@ -453,8 +446,6 @@ def test_a_stated_grid_gathers_members_the_network_put_under_the_body():
         else:
             parts.append(_door(n, (0.3, 0.18, 0.1), (0.0, y, -0.05), (0.0, y - 0.09, -0.1)))
     obj = ArticulatedObject(category="StorageFurniture", name="mail", parts=parts)
-    before = _structure(obj)
-    _layout(obj, "mail-slot style cabinet w/ 12 small doors, 6 across x 2 down")
+    _layout_same(obj, "mail-slot style cabinet w/ 12 small doors, 6 across x 2 down")
     doors = [i for i, p in enumerate(obj.parts) if p.label == "door"]
     assert _grid_of(obj, doors) == ("grid", 2, 6)
-    assert _structure(obj) == before
