@@ -261,10 +261,11 @@ def test_storage_fronts_grow_to_tile_their_face():
     from model.refine.layout import GAP
     from model.refine.siblings import FILL_FRAME
     FRAME = FILL_FRAME["StorageFurniture"][0]
+    from model.refine.layout import LayoutConfig
     obj = _small_fronts()
     before = {p.name: p.bbox_size.copy() for p in obj.parts}
     low = min(p.bbox_center[2] - p.bbox_size[2] / 2 for p in obj.parts[1:5])
-    rep = refine_layout(obj)
+    rep = refine_layout(obj, LayoutConfig(heaps=False))     # the fill alone
     fronts = obj.parts[1:5]
     assert rep["filled"] == 4 and _structure(obj) == _structure(_small_fronts())
     for p in fronts:                                   # nothing shrinks
@@ -289,6 +290,101 @@ def test_storage_fronts_grow_to_tile_their_face():
     door = obj.parts[1]
     assert door.joint.origin[1] == pytest.approx(door.bbox_center[1] - door.bbox_size[1] / 2,
                                                  abs=0.02)
+
+
+def test_a_door_under_a_row_of_controls_grows_across_the_front():
+    """"an oven with six knobs, three buttons, two racks and a door", seed 0: the door was
+    decoded 3 cm square under the control row, and the third button as a 62 x 53 cm slab
+    inside the oven (a third rack held as the prompt's button). The button takes its
+    siblings' size and row; the door grows to the front's frame sideways, as the knobs and
+    buttons above it do not stand beside it (it stayed a 3 cm wide, 62 cm tall pole)."""
+    from model.refine.layout import CONTROL_MAX
+    from model.refine.siblings import FILL_FRAME
+
+    def small(label, y, z, size, jt):
+        return _part(f"{label}_{y}", label, 0, size, (0.27, y, z),
+                     Joint(jt, (0.254, y, z), (1, 0, 0), t_range=(0, 0.004)))
+    oven = ArticulatedObject(category="Oven", name="oven", parts=[
+        _part("body_0", "body", -1, (0.508, 0.654, 0.737), (0, 0, 0.3805)),
+        _part("door_0", "door", 0, (0.01, 0.03, 0.029), (0.249, 0, 0.6475),
+              Joint(JointType.REVOLUTE, (0.254, 0.015, 0.6475), (0, 0, 1), r_range=(0, 1.5))),
+        small("button", 0.264, 0.676, (0.006, 0.018, 0.017), JointType.PRISMATIC),
+        small("button", -0.178, 0.676, (0.006, 0.019, 0.017), JointType.PRISMATIC)] + [
+        small("knob", y, 0.70, (0.03, 0.05, 0.06), JointType.CONTINUOUS)
+        for y in (0.18, 0.127, 0.067, -0.041, -0.097, -0.224)] + [
+        _part("button_slab", "button", 0, (0.506, 0.622, 0.006), (-0.016, 0, 0.225),
+              Joint(JointType.PRISMATIC, (0.237, 0, 0.225), (1, 0, 0), t_range=(0, 0.2)))])
+    refine_layout(oven)
+    slab, door = oven.parts[-1], oven.parts[1]
+    assert slab.bbox_size.max() <= CONTROL_MAX["button"]
+    assert abs(slab.bbox_center[2] - 0.676) < 0.01 and slab.bbox_center[0] > 0.25
+    controls = oven.parts[2:]
+    assert not any(_boxes_overlap(a, b) for n, a in enumerate(controls)
+                   for b in controls[n + 1:])
+    assert not any(_boxes_overlap(door, c) for c in controls)
+    frame = FILL_FRAME["Oven"][0]
+    assert door.bbox_size[1] == pytest.approx(0.654 - 2 * frame, abs=0.01)
+    assert door.bbox_size[2] > 0.5
+
+
+def test_drawers_cut_into_tall_strips_are_laid_out_again():
+    """"a cabinet with 5 drawers and 1 door", seed 0, as decoded: five drawers heaped
+    around a door as wide as the cabinet. The cuts left drawers 8 cm wide and 36 cm tall
+    (the data's are at most 1.16 times as tall as wide); the front is laid out again: the
+    drawers one stack beside the door, none overlapping."""
+    from model.refine.siblings import TALL_DRAWER
+
+    def front(label, y, z, x0, jt, axis):
+        lo, hi = np.array([x0, y[0], z[0]]), np.array([0.239, y[1], z[1]])
+        return _part(label, label, 0, hi - lo, (lo + hi) / 2,
+                     Joint(jt, (0.239, y[0], z[0]), axis, t_range=(0, 0.3),
+                           r_range=(0, 1.5)))
+    drawers = [((0.070, 0.470), (0.793, 1.118), -0.132), ((-0.429, -0.027), (0.739, 1.009), -0.159),
+               ((-0.215, 0.215), (0.301, 0.569), -0.162), ((-0.164, 0.340), (0.103, 0.319), -0.130),
+               ((-0.455, -0.056), (0.205, 0.507), -0.084)]
+    obj = ArticulatedObject(category="StorageFurniture", name="cabinet", parts=[
+        _part("body_0", "body", -1, (0.478, 0.928, 1.139), (0, 0, 0.6035)),
+        front("door", (-0.499, 0.499), (0.433, 0.740), 0.221, JointType.REVOLUTE, (0, 0, 1))] + [
+        front("drawer", y, z, x0, JointType.PRISMATIC, (1, 0, 0)) for y, z, x0 in drawers])
+    rep = refine_layout(obj)
+    assert rep.get("retiled") == 1 and _structure(obj)[0] == ("body", -1, JointType.FIXED)
+    fronts = obj.parts[1:]
+    assert not any(_boxes_overlap(a, b) for n, a in enumerate(fronts) for b in fronts[n + 1:])
+    for p in obj.parts[2:]:
+        assert p.bbox_size[2] <= TALL_DRAWER * p.bbox_size[1]
+    assert len({round(float(p.bbox_center[1]), 4) for p in obj.parts[2:]}) == 1   # one stack
+    # a drawer the fill grew into a 20 x 75 cm strip beside a stack of two: one stack
+    obj = _small_fronts()
+    assert refine_layout(obj).get("retiled") == 1
+    drawers = obj.parts[2:5]
+    assert len({round(float(p.bbox_center[1]), 4) for p in drawers}) == 1
+    assert all(p.bbox_size[2] <= TALL_DRAWER * p.bbox_size[1] for p in drawers)
+    assert not any(_boxes_overlap(a, b) for n, a in enumerate(obj.parts[1:5])
+                   for b in obj.parts[n + 2:5])
+
+
+def test_an_oversized_key_keeps_its_own_row_of_the_keypad():
+    """A 2 x 3 keypad on a safe's door with one key decoded 7 cm tall: the key takes its
+    siblings' size but stays in its own row (moving it to the keys' median height, as for a
+    single row, piled it onto another key)."""
+    from model.refine.layout import CONTROL_MAX
+
+    def key(n, y, z, size=(0.018, 0.022, 0.022)):
+        return _part(f"button_{n}", "button", 1, size, (0.229, y, z),
+                     Joint(JointType.PRISMATIC, (0.22, y, z), (-1, 0, 0), t_range=(0, 0.003)))
+    spots = [(y, z) for z in (0.30, 0.26) for y in (-0.04, 0.0, 0.04)]
+    safe = ArticulatedObject(category="Safe", name="safe", parts=[
+        _part("body_0", "body", -1, (0.44, 0.55, 0.49), (0, 0, 0.255)),
+        _part("door_0", "door", 0, (0.044, 0.45, 0.39), (0.198, 0, 0.255),
+              Joint(JointType.REVOLUTE, (0.22, -0.225, 0.255), (0, 0, 1), r_range=(0, 1.5)))] + [
+        key(n, y, z) for n, (y, z) in enumerate(spots[:-1])] + [
+        key(5, spots[-1][0], spots[-1][1], size=(0.018, 0.036, 0.072))])
+    refine_layout(safe)
+    keys = safe.parts[2:]
+    assert max(keys[-1].bbox_size[1:]) <= CONTROL_MAX["button"]
+    rows = [round(float(k.bbox_center[2]), 3) for k in keys]
+    assert sorted(rows) == [0.26] * 3 + [0.3] * 3
+    assert not any(_boxes_overlap(a, b) for n, a in enumerate(keys) for b in keys[n + 1:])
 
 
 def test_a_safe_door_grows_around_its_dial():

@@ -502,6 +502,44 @@ def _thicken(obj: ArticulatedObject) -> int:
     return n
 
 
+# m: the largest side a control keeps, the data's largest with a margin (buttons 2.2 cm,
+# knobs 9.5 cm, dials 13 cm across at most)
+CONTROL_MAX = {"button": 0.03, "knob": 0.12, "dial": 0.16}
+SLAB = 3.0     # a control over this many times its maximum across is no control at all
+
+
+def _shrink_controls(obj: ArticulatedObject) -> int:
+    """A knob, dial or button decoded larger than ``CONTROL_MAX`` of its label across its
+    axis takes the median box of its label's siblings within that size (else each side is
+    cut to the maximum about its centre); attaching then puts it on its parent's face. One
+    decoded as a slab (over ``SLAB`` times the maximum: a third oven rack held as the
+    prompt's third button, 62 x 53 cm inside the oven) also goes to its siblings' face and
+    row when they make one (centres within their median height), its own place along the
+    row. -> parts changed."""
+    n = 0
+    for i, p in enumerate(obj.parts):
+        most = CONTROL_MAX.get(p.label)
+        along = _principal(p.joint.axis)[0]
+        across = [d for d in range(3) if d != along]
+        if most is None or p.parent < 0 or p.bbox_size[across].max() <= most:
+            continue
+        kin = [q for q in obj.parts if q.label == p.label and q.parent == p.parent
+               and q.bbox_size[across].max() <= most]
+        slab = p.bbox_size[across].max() > SLAB * most
+        p.bbox_size = p.bbox_size.copy()
+        if kin:
+            p.bbox_size = np.median([q.bbox_size for q in kin], axis=0)
+            z = [q.bbox_center[2] for q in kin]
+            if slab and along != 2 and max(z) - min(z) <= p.bbox_size[2]:
+                p.bbox_center = p.bbox_center.copy()         # onto their face, in their row
+                p.bbox_center[along] = float(np.median([q.bbox_center[along] for q in kin]))
+                p.bbox_center[2] = float(np.median(z))
+        else:
+            p.bbox_size[across] = np.minimum(p.bbox_size[across], most)
+        n += 1
+    return n
+
+
 HANDLE_GRIP = 0.03    # m: the thickest grip of the data's door and drawer handles (bars 1-1.6
                       # cm thick; knob caps up to 4.8 cm across, model/data/synth/builder.py)
 HANDLE_KNOB = 0.05    # m: a pull at most this long both ways is a knob, whatever its grip
@@ -542,6 +580,7 @@ def refine_layout(obj: ArticulatedObject, config: Optional[LayoutConfig] = None,
                                     for b, i in zip(before, obj.movable_parts())))
     report["thickened"] = _thicken(obj)
     report["slimmed"] = _slim_handles(obj)
+    report["controls_shrunk"] = _shrink_controls(obj)
     order = obj.topological_order()            # parents first: children follow moved parents
     if cfg.attach:
         report["caps_seated"] = sum(_seat_cap(obj, i) for i in order)

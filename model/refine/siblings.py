@@ -133,21 +133,30 @@ SLIVER = 0.06       # m: a storage front narrower or lower than this is no door 
 PLACED = ARRANGEMENT_KEYS | POSITION_KEYS   # stated facts that keep a face's own layout
 
 
-def _retile(obj: ArticulatedObject, members: list[int], stated: dict) -> int:
+def _retile(obj: ArticulatedObject, members: list[int], stated: dict,
+            tall: bool = False) -> int:
     """Doors and drawers that the cuts left as slivers (a front under ``SLIVER`` across: the
-    network had decoded them on top of each other) are laid out again over the rectangle the
-    face's fronts cover: the drawers one stack, the doors side by side, the two blocks next
-    to each other in the order of their centres, each as wide as its share of the columns (a
-    column per door, one for the stack), ``GAP`` apart. Not where the prompt states their
-    arrangement or places, or other parts than fronts share the face.
+    network had decoded them on top of each other) are laid out again; with ``tall`` (after
+    the restack) so are fronts that still overlap or a drawer still over ``TALL_DRAWER``
+    times as tall as wide (five drawers heaped beside a door came out as 8 cm wide, 36 cm
+    tall strips, two of them overlapping; the data's drawers are at most 1.16 times as tall
+    as wide). Laid out again over the
+    rectangle the face's fronts cover: the drawers one stack, the doors side by side, the
+    two blocks next to each other in the order of their centres, each as wide as its share
+    of the columns (a column per door, one for the stack), ``GAP`` apart. Not where the
+    prompt states their arrangement or places, or other parts than fronts share the face.
     -> 1 if laid out again."""
     from .arrange import FRONT, H, V, _lay_out, _place
 
     fronts = [i for i in members if obj.parts[i].label in HEAPS]
     if not fronts or len(fronts) < len(members) \
-            or any(set(stated.get(lab) or {}) & PLACED for lab in HEAPS) \
-            or all(min(obj.parts[i].bbox_size[H], obj.parts[i].bbox_size[V]) >= SLIVER
-                   for i in fronts):
+            or any(set(stated.get(lab) or {}) & PLACED for lab in HEAPS):
+        return 0
+    parts = [obj.parts[i] for i in fronts]
+    if all(min(p.bbox_size[H], p.bbox_size[V]) >= SLIVER for p in parts) and not (tall and (
+            any(p.label == "drawer" and p.bbox_size[V] > TALL_DRAWER * p.bbox_size[H]
+                for p in parts)
+            or any(_overlap(a, b, GAP / 4) for n, a in enumerate(parts) for b in parts[n + 1:]))):
         return 0
     lo, hi = _union([obj.parts[i] for i in fronts])
     blocks = [[i for i in fronts if obj.parts[i].label == lab] for lab in HEAPS]
@@ -526,7 +535,8 @@ def _fill(obj: ArticulatedObject, parent: int, members: list[int], k: int,
     drawers as small boxes in a wide empty face, or an oven's door in a corner of its
     front, where the data's fronts cover 93 % (storage, median) of the rectangle they span,
     and that rectangle reaches to the category's frame (``FILL_FRAME``) of the carcass.
-    Vertical extents first, then horizontal; a part grows towards a front wholly beyond it
+    Vertical extents first, then horizontal (past the small parts above or below it at its
+    new height); a part grows towards a front wholly beyond it
     only to the middle of the gap between them (``GAP`` apart), and towards a knob, dial,
     button or handle on its face only to ``_clearance`` of it, so every part above, below, left or
     right of another stays so; nothing shrinks. A tray it now covers goes in behind it
@@ -550,7 +560,7 @@ def _fill(obj: ArticulatedObject, parent: int, members: list[int], k: int,
                 R0[d] = min(R0[d], P0[d] + frame)
     start = {i: obj.parts[i].bbox_center.copy() for i in fronts}
     axes = sorted((d for d in range(3) if d != k), key=lambda d: d != 2)   # z first
-    for d in axes:
+    for n, d in enumerate(axes):
         box = {i: _lohi(obj.parts[i]) for i in fronts + fixed}
         new = {}
         for i in fronts:
@@ -559,7 +569,7 @@ def _fill(obj: ArticulatedObject, parent: int, members: list[int], k: int,
             clear = _clearance(obj.parts[i], d)
             for j in fronts + fixed:   # any part wholly beyond i along d stays beyond it, so
                 jl, jh = box[j]         # what is above, below, left or right of what keeps so
-                if j == i:
+                if j == i or n and j not in start and not _beside(box[i], box[j], axes[0]):
                     continue
                 # touching within a tenth of the smaller side still counts as beyond
                 tol = BEYOND * min(hi[d] - lo[d], jh[d] - jl[d]) + 1e-6
@@ -593,6 +603,14 @@ def _fill(obj: ArticulatedObject, parent: int, members: list[int], k: int,
                 for c in obj.children(i):
                     _move_subtree(obj, c, move)
     return grown
+
+
+def _beside(a: tuple, b: tuple, d: int) -> bool:
+    """Whether boxes ``a`` and ``b`` ((lo, hi) each) overlap in extent along axis ``d``: a
+    front grown to its height (the fill's first pass) meets sideways only the knobs, dials,
+    buttons and handles that stand beside it, not those above it (an oven door 3 cm wide
+    under a row of knobs and buttons stayed a 3 cm pole); other fronts it always meets."""
+    return bool(a[0][d] < b[1][d] - 1e-6 and b[0][d] < a[1][d] - 1e-6)
 
 
 # An oven's racks in the data (model/data/synth/cabinets.py, every tray of the category): wire
@@ -758,6 +776,9 @@ def siblings(obj: ArticulatedObject, cfg: LayoutConfig, report: dict,
                     obj, drawers, (stated or {}).get("drawer") or {}):          # grew them
                 report["restacked"] = report.get("restacked", 0) + 1
                 _regular(obj, members, drawers)      # one column of equal drawers again
+            if cfg.heaps and k == 0 and obj.category == "StorageFurniture":
+                report["retiled"] = report.get("retiled", 0) + _retile(    # tall strips
+                    obj, members, stated or {}, tall=True)                  # still left
             if cfg.align and k == 0 and drawers:
                 report["handles"] = report.get("handles", 0) + _drawer_handles(obj, drawers)
             if cfg.attach:
