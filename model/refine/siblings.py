@@ -140,11 +140,11 @@ def _retile(obj: ArticulatedObject, members: list[int], stated: dict,
     the restack) so are fronts that still overlap or a drawer still over ``TALL_DRAWER``
     times as tall as wide (five drawers heaped beside a door came out as 8 cm wide, 36 cm
     tall strips, two of them overlapping; the data's drawers are at most 1.16 times as tall
-    as wide). Laid out again over the
-    rectangle the face's fronts cover: the drawers one stack, the doors side by side, the
-    two blocks next to each other in the order of their centres, each as wide as its share
-    of the columns (a column per door, one for the stack), ``GAP`` apart. Not where the
-    prompt states their arrangement or places, or other parts than fronts share the face.
+    as wide). Laid out again over the rectangle the face's fronts cover: the drawers one
+    stack, the doors side by side, the two blocks next to each other in the order of their
+    centres, each as wide as its share of the columns (a column per door, one for the
+    stack), ``GAP`` apart. Not where the prompt states their arrangement or places, or other
+    parts than fronts share the face.
     -> 1 if laid out again."""
     from .arrange import FRONT, H, V, _lay_out, _place
 
@@ -354,8 +354,8 @@ def _clear_panels(obj: ArticulatedObject, members: list[int], k: int) -> int:
     moves away along the axis it stands beside the panel on, or, when it stands in front of
     the panel, off its outline the shortest way, within its parent's face; where it cannot
     move, or the move would bring it onto another control (a row of knobs above the one it
-    belongs to), the panel gives way on that side. Beside the edges that swing out (across the
-    hinge axis: the top edge of a drop-down door, the free edge of a side-hinged one) the
+    belongs to), the panel gives way on that side. Beside the edges that swing out (across
+    the hinge axis: the top edge of a drop-down door, the free edge of a side-hinged one) the
     panel then gives way to ``CLEAR_SWING``: the collision pieces are cells of the part's
     meshing grid (a centimetre on a 70 cm door), and a drop-down door's top edge clipped
     knobs 1.2 cm above it; the knobs stay, so rows of them keep their places. Returns how
@@ -536,10 +536,10 @@ def _fill(obj: ArticulatedObject, parent: int, members: list[int], k: int,
     front, where the data's fronts cover 93 % (storage, median) of the rectangle they span,
     and that rectangle reaches to the category's frame (``FILL_FRAME``) of the carcass.
     Vertical extents first, then horizontal (past the small parts above or below it at its
-    new height); a part grows towards a front wholly beyond it
-    only to the middle of the gap between them (``GAP`` apart), and towards a knob, dial,
-    button or handle on its face only to ``_clearance`` of it, so every part above, below, left or
-    right of another stays so; nothing shrinks. A tray it now covers goes in behind it
+    new height); a part grows towards a front wholly beyond it only to the middle of the gap
+    between them (``GAP`` apart), and towards a knob, dial, button or handle on its face
+    only to ``_clearance`` of it, so every front above, below, left or right of another stays
+    so, and every small part beside it; nothing shrinks. A tray it now covers goes in behind it
     (``_recess``). A front the prompt puts on one side
     (``stated``: "a door on the left") keeps its centre there, at least ``KEEP_SIDE`` of the
     half-face off the middle. A drawer's children move with its centre; a door's stay where
