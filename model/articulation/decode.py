@@ -428,11 +428,9 @@ def _set_aside(am: "ArticulationModel", row: dict, out: dict, t: int, li: int,
     need = sum(st["need"].values())
     if len(row["tok"]) + 1 + need > max_nodes or row["nkids"][t] + 1 + need > max_children:
         return False
-    push_child(am, row, out, t, li, int(out["jt"][t].argmax()), row["depth"][t - 1] + 1)
+    _push_structured(am, row, out, t, li, int(out["jt"][t].argmax()),
+                     row["depth"][t - 1] + 1, aside=True)
     row["done"][-1] = True            # a leaf: nothing hangs on a part that is dropped
-    st["names"].append(am.table_labels[li])
-    st["sides"].append(None)
-    st["aside"].append(True)
     return True
 
 
@@ -523,14 +521,22 @@ def _structured_joint(row: dict, lab: str, logits: torch.Tensor, temperature: fl
 def _add_node(am: "ArticulationModel", row: dict, out: dict, t: int, li: int, jt: int,
               depth: int) -> None:
     """Append the child predicted at token t with label-table entry li (structure path)."""
-    st = row["struct"]
+    need = row["struct"]["need"]
     lab = am.table_labels[li]
-    st["names"].append(lab)
-    if st["need"].get(lab, 0) > 0:
-        st["need"][lab] -= 1
+    if need.get(lab, 0) > 0:
+        need[lab] -= 1
+    _push_structured(am, row, out, t, li, jt, depth, aside=False)
+
+
+def _push_structured(am: "ArticulationModel", row: dict, out: dict, t: int, li: int, jt: int,
+                     depth: int, aside: bool) -> None:
+    """push_child, and the structure's per-node label, hinge side (none yet) and set-aside
+    flag."""
+    st = row["struct"]
     push_child(am, row, out, t, li, jt, depth)
+    st["names"].append(am.table_labels[li])
     st["sides"].append(None)
-    st["aside"].append(False)
+    st["aside"].append(aside)
 
 
 def _hinge_last(am: "ArticulationModel", row: dict, lab: str) -> None:

@@ -3,6 +3,7 @@ steps 3-5): align repeated parts on rows and columns, space small ones, cut over
 siblings apart, keep knobs, dials and buttons clear of the panels beside them."""
 from __future__ import annotations
 
+from types import SimpleNamespace
 from typing import Optional
 
 import numpy as np
@@ -423,16 +424,10 @@ def _onto_controls(q, d: int, centre: float, controls: list) -> bool:
     """Whether moving control ``q``'s centre to ``centre`` along axis ``d`` brings it within
     GAP of another control it stands clear of now (the lower row of "six knobs, 2 rows of
     3" lifted off an oven door into the upper row)."""
-    moved = q.bbox_center.copy()
-    moved[d] = centre
-    lo, hi = moved - q.bbox_size / 2, moved + q.bbox_size / 2
-    for o in controls:
-        if o is q or _overlap(q, o, -GAP):
-            continue
-        olo, ohi = _lohi(o)
-        if np.all(lo < ohi + GAP) and np.all(olo < hi + GAP):
-            return True
-    return False
+    moved = SimpleNamespace(bbox_center=q.bbox_center.copy(), bbox_size=q.bbox_size)
+    moved.bbox_center[d] = centre
+    return any(o is not q and not _overlap(q, o, -GAP) and _overlap(moved, o, -GAP)
+               for o in controls)
 
 
 def _overlap(a, b, pad: float = 0.0) -> bool:
@@ -758,7 +753,8 @@ def siblings(obj: ArticulatedObject, cfg: LayoutConfig, report: dict,
             if cfg.fill and obj.category in FILL_FRAME:
                 report["filled"] = report.get("filled", 0) + _fill(obj, par, members, k,
                                                                         stated or {})
-            if cfg.heaps and k == 0 and obj.category == "StorageFurniture":
+            storage_front = cfg.heaps and k == 0 and obj.category == "StorageFurniture"
+            if storage_front:
                 report["retiled"] = report.get("retiled", 0) + _retile(obj, members,
                                                                        stated or {})
             if cfg.fill and obj.category in RACKS:
@@ -776,7 +772,7 @@ def siblings(obj: ArticulatedObject, cfg: LayoutConfig, report: dict,
                     obj, drawers, (stated or {}).get("drawer") or {}):          # grew them
                 report["restacked"] = report.get("restacked", 0) + 1
                 _regular(obj, members, drawers)      # one column of equal drawers again
-            if cfg.heaps and k == 0 and obj.category == "StorageFurniture":
+            if storage_front:
                 report["retiled"] = report.get("retiled", 0) + _retile(    # tall strips
                     obj, members, stated or {}, tall=True)                  # still left
             if cfg.align and k == 0 and drawers:
