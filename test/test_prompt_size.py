@@ -9,7 +9,7 @@ from model.data.prompt_parse import parse_prompt
 from model.data.prompt_size import (read_size, with_usual_keypad, with_usual_layout,
                                     with_usual_parts, with_usual_size)
 from model.metrics.alignment import GeneratedStructure, check_alignment
-from model.refine.size import scale_to_size, size_factors
+from model.refine.size import place_on_floor, scale_to_size, size_factors
 
 
 @pytest.mark.parametrize("text,size", [
@@ -121,6 +121,30 @@ def test_scaling_gives_the_body_its_size_and_keeps_it_on_the_floor():
     np.testing.assert_allclose(obj.parts[2].bbox_size, [0.015] * 3)
     assert scale_to_size(obj, {}) is None
     np.testing.assert_allclose(size_factors([0.5, 0.8, 1.0], {"length": 2.0}), [2.0] * 3)
+
+
+def test_a_layout_is_placed_on_the_floor_with_its_body_centred():
+    import trimesh
+    obj = _cabinet()
+    body, drawer, knob = obj.parts
+    drawer.bbox_center = drawer.bbox_center + [0, 0, -0.75]     # hangs 5 cm below the body
+    drawer.joint.origin = drawer.joint.origin + [0, 0, -0.75]
+    shift = np.array([0.1, -0.2, 0.3])                         # decoded off the origin
+    for p in obj.parts:
+        p.bbox_center = p.bbox_center + shift
+        p.joint.origin = p.joint.origin + shift
+    body.mesh = trimesh.creation.box(extents=body.bbox_size)
+    body.mesh.apply_translation(body.bbox_center)
+    body.collision = [body.mesh.copy()]
+    move = place_on_floor(obj)
+    np.testing.assert_allclose(move, [-0.1, 0.2, -0.25])
+    np.testing.assert_allclose(body.bbox_center, [0, 0, 0.55])     # the drawer is lowest
+    assert drawer.bbox_center[2] - drawer.bbox_size[2] / 2 == pytest.approx(0.0)
+    np.testing.assert_allclose(drawer.joint.origin, [0.25, 0, 0.1])
+    np.testing.assert_allclose(knob.joint.origin, knob.bbox_center)
+    for m in (body.mesh, body.collision[0]):
+        np.testing.assert_allclose(m.bounds, [[-0.25, -0.4, 0.05], [0.25, 0.4, 1.05]])
+    np.testing.assert_allclose(place_on_floor(obj), [0, 0, 0], atol=1e-12)   # already there
 
 
 def test_alignment_checks_the_stated_size_within_five_percent():

@@ -27,6 +27,10 @@ def test_cabinet_collision_boxes_and_simulators(gen, tmp_path):
             c = p.bbox_center
             assert not any(np.all(b.bounds[0] <= c) and np.all(c <= b.bounds[1])
                            for b in body.collision)
+    # the data's frame: standing on z = 0, the body centred on the z axis
+    rest = np.concatenate([m.vertices for m in obj.posed_meshes().values()])
+    assert abs(rest[:, 2].min()) < 0.003
+    np.testing.assert_allclose(body.bbox_center[:2], 0.0, atol=0.003)
     out = gen.export(res, tmp_path / "cabinet", preview=False)
     root = etree.parse(out.urdf_path).getroot()
     from model.export.urdf import link_name

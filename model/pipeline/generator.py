@@ -270,14 +270,24 @@ class Generator:
         prompt states first (model.refine.arrange, with ``prompt_structure``), then
         model.refine.refine_layout, then the hinge sides a structure asked for, then door
         handles to their free edge (free_edge_handles). A size the prompt states is given to
-        the body first, refined or not (model.refine.size), unless parts are kept."""
+        the body first, refined or not (model.refine.size), unless parts are kept. Last, the
+        object is placed in the data's frame, refined or not (base on z = 0, body centred on
+        the z axis: model.refine.size.place_on_floor), unless parts are kept."""
         obj = tree.to_object()
         report = {} if report is None else report
-        if tree.size and not np.any(tree.kept):
+        kept = bool(np.any(tree.kept))
+        if tree.size and not kept:
             from model.refine.size import scale_to_size
             report["size"] = scale_to_size(obj, tree.size)
-        if not (self.config.refine if refine is None else refine):
-            return obj
+        if self.config.refine if refine is None else refine:
+            self._refine_layout(obj, tree, report)
+        if not kept:
+            from model.refine.size import place_on_floor
+            report["placed"] = place_on_floor(obj)
+        return obj
+
+    def _refine_layout(self, obj: ArticulatedObject, tree, report: dict) -> None:
+        """The layout refinement steps of :meth:`layout`, in place."""
         from model.refine import (arrange_stated, free_edge_handles, place_stated_sides,
                                   refine_layout)
         stated = tree.spatial if self.config.prompt_structure else None
@@ -288,7 +298,6 @@ class Generator:
             report["arranged"] += place_stated_sides(obj, stated)
         _keep_hinge_sides(obj, tree.hinges)
         report["layout"]["handles_to_free_edge"] = free_edge_handles(obj, stated)
-        return obj
 
     def _geometry(self, tree, gen, timings: dict, keep: Optional[ArticulatedObject],
                   shape) -> ArticulatedObject:
