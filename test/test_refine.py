@@ -553,6 +553,39 @@ def test_a_door_or_lid_swings_within_the_datas_range(category, label, decoded, k
     assert obj.parts[1].joint.r_range == pytest.approx((0.0, np.radians(kept)))
 
 
+@pytest.mark.parametrize("lid_size, lid_centre, axis", [
+    ((0.043, 0.08, 0.071), (-0.25, 0, 0.84), (0, -1, 0)),     # a 4 x 8 cm lid on the back face
+    ((0.16, 0.22, 0.03), (-0.08, 0, 0.94), (-1, 0, 0)),       # a hatch on the top, side-hinged
+])
+def test_a_washers_lid_covers_its_top_and_is_hinged_at_the_back(lid_size, lid_centre, axis):
+    """"a top-loading washing machine with a lid", seed 0: a 4 x 8 cm lid on the back face
+    (the audit: 1.2 % of that face); "a top loader": hatches over 15 % of the top, some
+    hinged at the side. The data's lids cover 48-71 % of the top, towards the front, and
+    turn about the back edge; the handle on the lid moves with it."""
+    from model.refine.layout import LID_TOP_SHARE
+    obj = ArticulatedObject(category="WashingMachine", name="washer", parts=[
+        _part("body_0", "body", -1, (0.54, 0.52, 0.92), (0, 0, 0.46)),
+        _part("lid_0", "lid", 0, lid_size, lid_centre,
+              Joint(JointType.REVOLUTE, (-0.27, 0, 0.87), axis, r_range=(0, 1.5))),
+        _part("handle_0", "handle", 1, (0.02, 0.06, 0.02),
+              np.add(lid_centre, (0, 0, lid_size[2] / 2 + 0.01))),
+    ])
+    report = refine_layout(obj)
+    body, lid, handle = obj.parts
+    assert report["lids_to_top"] == 1
+    assert int(np.argmin(lid.bbox_size)) == 2
+    assert abs(lid.bbox_center[2] - 0.92) <= lid.bbox_size[2] / 2      # seated on the top
+    assert lid.bbox_size[0] * lid.bbox_size[1] >= LID_TOP_SHARE * 0.54 * 0.52
+    assert lid.bbox_center[0] > 0.05                               # towards the front
+    assert abs(lid.joint.axis[1]) == pytest.approx(1.0)
+    assert lid.joint.origin[0] == pytest.approx(lid.bbox_center[0] - lid.bbox_size[0] / 2)
+    lo, hi = lid.bbox_center - lid.bbox_size / 2, lid.bbox_center + lid.bbox_size / 2
+    assert np.all(lo[:2] <= handle.bbox_center[:2]) and np.all(handle.bbox_center[:2] <= hi[:2])
+    assert handle.bbox_center[2] > hi[2]
+    assert _structure(obj) == [("body", -1, JointType.FIXED), ("lid", 0, JointType.REVOLUTE),
+                               ("handle", 1, JointType.FIXED)]
+
+
 @pytest.mark.parametrize("decoded, kept", [(0.009, 0.2), (0.3, 0.3), (0.5, 0.36)])
 def test_a_drawer_slides_out_between_half_and_most_of_its_depth(decoded, kept):
     """A drawer decoded to slide out 9 mm slides half its 40 cm depth (the data's shortest
