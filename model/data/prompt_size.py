@@ -7,7 +7,9 @@ side. A value outside 1 cm - 5 m is not a size a generated object can take and i
 
 ``with_usual_size`` adds the usual size of everyday objects the data lacks at their size for
 the dimensions the text leaves open (``NAMED_SIZES``: a microwave is read as an oven, whose
-data is 45-95 cm tall, so without it "a microwave" came out oven-sized); ``with_usual_layout``
+data is 45-95 cm tall, so without it "a microwave" came out oven-sized), and keeps the
+data's everyday names within the body sizes the data gives them (``NAMED_RANGES``: a locker
+is over 1.2 m tall); ``with_usual_layout``
 their usual arrangement (``NAMED_LAYOUTS``: a microwave's controls beside its door);
 ``with_usual_keypad`` a keypad the text does not count its usual keys.
 """
@@ -44,6 +46,24 @@ NAMED_SIZES: dict[str, list[tuple[tuple[str, ...], dict[str, float]]]] = {
 }
 
 
+# body ranges (m) of the everyday names the data's descriptions give only to bodies within
+# them (model/data/describe.py), and the data's median of each name (synth-v6 val + test):
+# name -> {dim: (lowest, highest, median)}. The network reads these rare names loosely ("a
+# locker" decoded 0.76-1.08 m tall in 7 of 8 seeds, "a filing cabinet" 0.9 m wide); an open
+# dimension outside its range takes the median, one inside keeps its decoded value.
+NAMED_RANGES: dict[str, list[tuple[tuple[str, ...], dict[str, tuple[float, float, float]]]]] = {
+    "StorageFurniture": [
+        (("filing cabinet", "file cabinet"), {"width": (0.0, 0.6, 0.49),
+                                              "height": (0.6, 9.9, 1.24)}),
+        (("locker",), {"width": (0.0, 0.65, 0.53), "height": (1.2, 9.9, 1.39)}),
+        (("wardrobe", "armoire"), {"height": (1.5, 9.9, 1.68)}),
+        (("nightstand", "bedside table", "bedside cabinet"), {"width": (0.0, 0.65, 0.47),
+                                                               "height": (0.0, 0.75, 0.59)}),
+        (("sideboard", "credenza"), {"width": (1.0, 9.9, 1.34), "height": (0.0, 1.1, 0.71)}),
+    ],
+}
+
+
 def _named(text: str, names: tuple[str, ...]) -> bool:
     low = text.lower()
     return any(re.search(rf"\b{n}s?\b", low) for n in names)
@@ -69,12 +89,16 @@ def read_size(text: str) -> dict[str, float]:
 
 # usual arrangements of everyday names whose category's data has another one (a microwave's
 # door hangs on the left with its controls in a column to its right; the data's ovens have a
-# control panel above the door): (names, the door's hinge they hold for, facts per label)
-NAMED_LAYOUTS: dict[str, list[tuple[tuple[str, ...], str, dict]]] = {
+# control panel above the door), or which the data gives that name only with (a filing
+# cabinet's drawers are one column): (names, the door's hinge they hold for or None, facts
+# per label)
+NAMED_LAYOUTS: dict[str, list[tuple[tuple[str, ...], str | None, dict]]] = {
     "Oven": [(("microwave",), "left",
               {"door": {"hpos": ["left"]}, **{c: {"hpos": ["right"], "layout": "column"}
                                               for c in ("knob", "button", "dial")},
                "button": {"hpos": ["right"], "layout": "column", "below": ["knob"]}})],
+    "StorageFurniture": [(("filing cabinet", "file cabinet"), None,
+                          {"drawer": {"layout": "column"}})],
 }
 
 
@@ -87,8 +111,8 @@ def with_usual_layout(text: str, category: str | None, spatial: dict | None) -> 
         if not _named(text, names):
             continue
         facts = spatial or {}
-        if (facts.get("door") or {}).get("hinge") != [hinge] or any(
-                f.get("hpos") or f.get("layout") for f in facts.values()):
+        if (hinge is not None and (facts.get("door") or {}).get("hinge") != [hinge]) or any(
+                f.get("hpos") or f.keys() & ARRANGEMENT_KEYS for f in facts.values()):
             return spatial
         out = {lab: dict(f) for lab, f in facts.items()}
         for lab, f in usual.items():
@@ -97,16 +121,36 @@ def with_usual_layout(text: str, category: str | None, spatial: dict | None) -> 
     return spatial
 
 
-def with_usual_size(text: str, category: str | None, stated: dict | None) -> dict:
-    """``stated`` with the usual size of an everyday name in ``text`` (``NAMED_SIZES``) for
-    the dimensions it leaves open: what generation gives the body ("a microwave" is
-    microwave-sized). Not a stated fact: the alignment metric checks ``stated`` only."""
+def with_usual_size(text: str, category: str | None, stated: dict | None,
+                    decoded=None, spatial: dict | None = None) -> dict:
+    """``stated`` with the usual size of an everyday name in ``text`` for the dimensions it
+    leaves open: what generation gives the body ("a microwave" is microwave-sized:
+    ``NAMED_SIZES``). With ``decoded`` (the decoded body's depth, width, height in m), a
+    name of ``NAMED_RANGES`` ("a locker") gives every open dimension outside its range the
+    name's median and keeps the others as decoded, unless the text's ``spatial`` facts
+    (label -> facts) arrange parts ("a filing cabinet with drawers in two columns" keeps the
+    width its columns need). Not a stated fact: the alignment metric checks ``stated``
+    only."""
     out = dict(stated or {})
+    if "length" in out:
+        return out
     for names, usual in NAMED_SIZES.get(category or "", []):
-        if _named(text, names) and "length" not in out:
+        if _named(text, names):
             for dim, value in usual.items():
                 out.setdefault(dim, value)
-            break
+            return out
+    if decoded is None or any(f.keys() & ARRANGEMENT_KEYS for f in (spatial or {}).values()):
+        return out
+    for names, ranges in NAMED_RANGES.get(category or "", []):
+        if not _named(text, names):
+            continue
+        have = {dim: float(decoded[ax]) for dim, ax in AXIS.items()}
+        fixed = {dim: mid for dim, (lo, hi, mid) in ranges.items()
+                 if dim not in out and not lo <= have[dim] <= hi}
+        if fixed:       # the other dimensions keep their decoded size (scale_to_size would
+            for dim, value in have.items():          # scale an open one with the rest)
+                out.setdefault(dim, fixed.get(dim, round(value, 4)))
+        break
     return out
 
 

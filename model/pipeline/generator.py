@@ -237,7 +237,9 @@ class Generator:
             tree.structure = held
             tree.spatial = with_usual_layout(prompt, tree.category, spatial_for(
                 stated.spatial, tree.category)) if stated is not None else None
-            said = with_usual_size(prompt, tree.category, stated.size) if stated else {}
+            said = with_usual_size(prompt, tree.category, stated.size,
+                                   decoded=tree.tokens[0, :3],
+                                   spatial=stated.spatial) if stated else {}
             tree.size = {**said, **(given or {})} or None
         return trees, prompt, modality, timings
 
