@@ -471,11 +471,14 @@ def _heading(face: tuple[int, float]) -> float:
 
 
 def _move_subtree(obj: ArticulatedObject, i: int, move) -> None:
-    """Translate part ``i`` and every part below it (boxes and joint origins) by ``move``."""
+    """Translate part ``i`` and every part below it (boxes, joint origins, and the meshes and
+    collision pieces they already have) by ``move``."""
     for c in obj.subtree(i):
         q = obj.parts[c]
         q.bbox_center = q.bbox_center + move
         q.joint.origin = np.asarray(q.joint.origin, dtype=np.float64) + move
+        for m in ([q.mesh] if q.mesh is not None else []) + list(q.collision or []):
+            m.apply_translation(move)
 
 
 def _snap(obj: ArticulatedObject, deg: float) -> None:

@@ -333,11 +333,7 @@ def settle_onto_parents(obj: ArticulatedObject, mans: dict, gap: float = SETTLE_
                 mans[c] = mans[c].translate(tuple(d * step))
             total += step
         if total > 0:
-            _move_subtree(obj, k, d * total)
-            for c in obj.subtree(k):
-                if obj.parts[c].collision:
-                    for piece in obj.parts[c].collision:
-                        piece.apply_translation(d * total)
+            _move_subtree(obj, k, d * total)      # (its meshes are stored from mans later)
             moved.append(p.name)
     return moved
 

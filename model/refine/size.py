@@ -21,6 +21,8 @@ import numpy as np
 from model.core import ArticulatedObject
 from model.data.prompt_size import AXIS
 
+from .layout import _move_subtree
+
 PANELS = ("body", "door", "drawer", "lid", "tray")
 
 
@@ -73,9 +75,5 @@ def place_on_floor(obj: ArticulatedObject) -> list[float]:
     cx, cy = BODY_CENTRE.get(obj.category, (0.0, 0.0))
     move = np.array([cx - body.bbox_center[0], cy - body.bbox_center[1], -bottom],
                     dtype=np.float64)
-    for p in obj.parts:
-        p.bbox_center = p.bbox_center + move
-        p.joint.origin = np.asarray(p.joint.origin, dtype=np.float64) + move
-        for m in ([p.mesh] if p.mesh is not None else []) + list(p.collision or []):
-            m.apply_translation(move)
+    _move_subtree(obj, obj.root, move)
     return [round(float(v), 5) for v in move]
