@@ -9,6 +9,8 @@ from model.data import synth, vocab
 from model.data.describe import _pluralise_verb, describe, structured_summary
 from model.data.format import DESCRIPTION_LENGTHS
 
+from helpers import built_object
+
 OBJECTS = [(c, i) for c in synth.GENERATORS for i in range(2)]
 
 
@@ -52,7 +54,7 @@ def _category_named(text: str, category: str) -> bool:
 
 @pytest.mark.parametrize("cat,i", OBJECTS)
 def test_descriptions_agree_with_summary(cat, i):
-    obj = synth.generate_object(seed=11, index=i, category=cat)
+    obj = built_object(11, i, cat)
     summ = structured_summary(obj)
     assert set(summ) >= {"category", "counts", "joint_types", "num_parts", "num_movable"}
     texts = describe(obj, np.random.default_rng(i))
@@ -79,7 +81,7 @@ def test_descriptions_agree_with_summary(cat, i):
 
 
 def test_lengths_ordered_and_wording_varies():
-    objs = [synth.generate_object(seed=4, index=i) for i in range(15)]
+    objs = [built_object(4, i) for i in range(15)]
     lens = {k: [] for k in DESCRIPTION_LENGTHS}
     sentences = set()
     for k, o in enumerate(objs):
@@ -97,13 +99,13 @@ def test_lengths_ordered_and_wording_varies():
 
 
 def test_deterministic_for_rng():
-    obj = synth.generate_object(seed=0, index=3)
+    obj = built_object(0, 3)
     assert describe(obj, np.random.default_rng(5)) == describe(obj, np.random.default_rng(5))
 
 
 # --- spatial facts are true of the object -----------------------------------------------------
 def _spatial_objects():
-    return [synth.generate_object(seed=21, index=i, category=c)
+    return [built_object(21, i, c)
             for c in ("StorageFurniture", "StorageFurniture", "Safe", "Oven", "WashingMachine",
                       "Bottle") for i in range(4)]
 
@@ -208,7 +210,7 @@ def test_description_phrases_are_true(spatial_objects):
 def test_everyday_names_fit_the_object():
     from model.data.describe import everyday_names
     for i in range(30):
-        obj = synth.generate_object(seed=5, index=i)
+        obj = built_object(5, i)
         names = everyday_names(obj)
         labels = [p.label for p in obj.parts]
         if "dresser" in names:

@@ -12,10 +12,12 @@ from model.core import JointType
 from model.data import partnet, synth
 from model.data.describe import describe
 
+from helpers import built_object
+
 
 @pytest.mark.parametrize("cat", list(synth.GENERATORS))
 def test_round_trip_and_urdf_loads(tmp_path, cat):
-    obj = synth.generate_object(seed=5, index=1, category=cat)
+    obj = built_object(5, 1, cat)
     folder = partnet.write_partnet(obj, tmp_path / cat, descriptions=describe(obj))
     for f in ("mobility.urdf", "mobility_v2.json", "semantics.txt", "meta.json", "descriptions.json"):
         assert (folder / f).exists(), f
@@ -239,10 +241,10 @@ def test_every_written_urdf_loads(tmp_path):
     """A synthesized sample (the `artformer data synth` path): every mobility.urdf loads in
     yourdfpy with its meshes, and our loader reads every folder back."""
     from model.data.synth import synthesize_dataset
-    info = synthesize_dataset(str(tmp_path / "s"), 12, seed=21, workers=1, progress=False)
+    info = synthesize_dataset(str(tmp_path / "s"), 6, seed=21, workers=1, progress=False)
     assert not info["errors"]
     folders = partnet.find_object_folders(tmp_path / "s")
-    assert len(folders) == 12
+    assert len(folders) == 6
     for f in folders:
         urdf = yourdfpy.URDF.load(str(f / "mobility.urdf"))
         assert urdf.scene is not None and len(urdf.scene.geometry) == len(list((f / "textured_objs").glob("*.obj")))

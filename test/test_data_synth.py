@@ -5,13 +5,15 @@ import pytest
 from model.core import JointType, meshops
 from model.data import synth
 
+from helpers import built_object
+
 # A sample across all six categories (fixed seeds; index picks the object).
 SAMPLE = [(cat, i) for cat in synth.GENERATORS for i in (0, 1)]
 
 
 @pytest.fixture(scope="module")
 def sample_objects():
-    return {(c, i): synth.generate_object(seed=3, index=i, category=c) for c, i in SAMPLE}
+    return {(c, i): built_object(3, i, c) for c, i in SAMPLE}
 
 
 @pytest.mark.parametrize("cat,i", SAMPLE)
@@ -88,7 +90,7 @@ def test_deterministic_and_distinct():
 
 
 def test_variety_of_layouts_and_counts():
-    objs = [synth.generate_object(seed=1, index=i, category="StorageFurniture") for i in range(24)]
+    objs = [built_object(1, i, "StorageFurniture") for i in range(24)]
     moving = [len(o.movable_parts()) for o in objs]
     assert min(moving) >= 1 and max(moving) >= 8
     sigs = {tuple(sorted(o.summary()["counts"].items())) for o in objs}
@@ -100,11 +102,11 @@ def test_variety_of_layouts_and_counts():
     assert {o.metadata["base"] for o in objs} >= {"flush", "plinth", "legs"}
     assert {o.metadata["top"] for o in objs} == {"flush", "overhang"}
     assert {o.metadata["door_style"] for o in objs} == {"flat", "shaker"}
-    ovens = [synth.generate_object(seed=1, index=i, category="Oven") for i in range(12)]
+    ovens = [built_object(1, i, "Oven") for i in range(12)]
     door_axes = {tuple(np.abs(o.parts[o.index_of("door_0")].joint.axis)) for o in ovens}
     assert door_axes == {(0.0, 1.0, 0.0), (0.0, 0.0, 1.0)}        # drop-down and side-hinged
     # ≥ 12 moving parts occur (safes with keypads, big drawer grids)
-    big = [synth.generate_object(seed=0, index=i, category="Safe") for i in range(40)]
+    big = [built_object(0, i, "Safe") for i in range(40)]
     assert max(max(moving), max(len(o.movable_parts()) for o in big)) >= 12
 
 
@@ -115,7 +117,7 @@ def test_drawers_are_wider_than_tall_and_tall_bands_become_rows():
     from model.data.synth.cabinets import DRAWER_ASPECT
     rows = 0
     for i in range(30):
-        o = synth.generate_object(seed=2, index=i, category="StorageFurniture")
+        o = built_object(2, i, "StorageFurniture")
         drawers = [p for p in o.parts if p.label == "drawer"]
         for p in drawers:
             assert p.bbox_size[2] <= DRAWER_ASPECT * p.bbox_size[1] + 0.01, (i, p.bbox_size)
@@ -124,10 +126,10 @@ def test_drawers_are_wider_than_tall_and_tall_bands_become_rows():
 
 
 def test_category_specific_joints():
-    bottles = [synth.generate_object(seed=2, index=i, category="Bottle") for i in range(8)]
+    bottles = [built_object(2, i, "Bottle") for i in range(8)]
     kinds = {o.parts[o.movable_parts()[0]].joint.type for o in bottles}
     assert JointType.SCREW in kinds and JointType.REVOLUTE in kinds
-    usbs = [synth.generate_object(seed=2, index=i, category="USB") for i in range(8)]
+    usbs = [built_object(2, i, "USB") for i in range(8)]
     kinds = {o.parts[o.movable_parts()[0]].joint.type for o in usbs}
     assert kinds == {JointType.REVOLUTE, JointType.PRISMATIC}
     oven = synth.generate_object(seed=2, index=0, category="Oven")
@@ -140,7 +142,7 @@ def test_bottle_bodies_are_solid_with_an_open_mouth():
     an open neck bore under its cap or lid."""
     import igl
     for i in range(6):
-        o = synth.generate_object(seed=2, index=i, category="Bottle")
+        o = built_object(2, i, "Bottle")
         body = o.parts[0]                                  # the root
         lo, hi = body.mesh.bounds
         assert meshops.volume(body.mesh) / np.prod(hi - lo) > 0.4, (i, o.name)

@@ -77,12 +77,12 @@ def _norm(text: str) -> str:
 
 def _copies(n_objects: int) -> list:
     from model.data.describe import describe
-    from model.data.synth import generate_object
+    from helpers import built_object
     prompts = {_norm(p): p for p, _ in ITEMS}
     words = {k: set(k.split()) for k in prompts}
     found = []
     for i in range(n_objects):
-        obj = generate_object(seed=3, index=i)
+        obj = built_object(3, i)
         for texts in describe(obj, np.random.default_rng(i)).values():
             for t in texts:
                 nt = _norm(t)

@@ -191,11 +191,11 @@ def test_parser_reads_back_the_dataset_templates():
     object itself satisfies (the alignment metric's ceiling on template prompts)."""
     import numpy as np
     from model.data.describe import describe
-    from model.data.synth import generate_object
+    from helpers import built_object
     total = aligned = spatial = spatial_ok = 0
     failures = []
     for i in range(12):
-        obj = generate_object(seed=7, index=i)
+        obj = built_object(7, i)
         for length, texts in describe(obj, np.random.default_rng(i)).items():
             for t in texts:
                 r = alignment_of(t, obj)

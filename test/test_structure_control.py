@@ -103,10 +103,10 @@ def test_grammar_matches_the_data_generator():
     """Every part of generated training objects fits STRUCTURE_GRAMMAR (parent label, joint
     type, count per object) and no object has two exclusive labels."""
     from model.articulation.decode import STRUCTURE_EXCLUSIVE, STRUCTURE_GRAMMAR
-    from model.data.synth import generate_object
+    from helpers import built_object
     for cat, grammar in STRUCTURE_GRAMMAR.items():
         for index in range(2):
-            obj = generate_object(7, index, category=cat)
+            obj = built_object(7, index, cat)
             counts = Counter(p.label for p in obj.parts)
             for p in obj.parts:
                 hosts, joints, most = grammar[p.label]
