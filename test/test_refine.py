@@ -1247,6 +1247,30 @@ def test_slab_and_block_handles_get_a_bars_grip_and_knobs_stay():
     assert refine_layout(obj)["slimmed"] == 0          # refinement runs it: none left
 
 
+def test_a_handle_decoded_standing_out_of_its_door_lies_on_it():
+    """"a tall bathroom cabinet" seed 1: a handle decoded 58 cm along its door's normal (a
+    bar sticking out of the cabinet; the data's stand 2-4.3 cm out). It stands HANDLE_STAND
+    out of the door's face and runs along the door's longer side, at most HANDLE_LENGTH of
+    it; its joint origin moves with it. A handle standing 3 cm out stays."""
+    from model.refine.layout import HANDLE_LENGTH, HANDLE_STAND, _slim_handles
+    obj = ArticulatedObject(category="StorageFurniture", name="h", parts=[
+        _part("body_0", "body", -1, (0.5, 1.0, 1.5), (0, 0, 0.75)),
+        _part("door_0", "door", 0, (0.02, 0.45, 0.8), (0.26, -0.25, 1.0),
+              Joint(JointType.REVOLUTE, (0.27, -0.475, 1.0), (0, 0, 1), r_range=(0, 1.5))),
+        _part("handle_0", "handle", 1, (0.58, 0.02, 0.04), (0.56, -0.1, 1.0),
+              Joint(JointType.FIXED, (0.56, -0.1, 1.0))),
+        _part("handle_1", "handle", 1, (0.03, 0.016, 0.2), (0.285, -0.2, 0.7)),
+    ])
+    assert _slim_handles(obj) == 1
+    stood, kept = obj.parts[2], obj.parts[3]
+    assert stood.bbox_size == pytest.approx((HANDLE_STAND[1], 0.02, HANDLE_LENGTH * 0.8))
+    assert stood.bbox_center[0] - stood.bbox_size[0] / 2 == pytest.approx(0.27)   # on the face
+    assert stood.joint.origin == pytest.approx(stood.bbox_center)
+    assert kept.bbox_size == pytest.approx((0.03, 0.016, 0.2))
+    assert refine_layout(obj)["slimmed"] == 0
+    assert stood.bbox_size[0] <= HANDLE_STAND[0]
+
+
 def test_a_carcass_on_box_pieces_of_its_back_wall_stands_on_its_footprint():
     """The root's box pieces cover only its back wall (a thin-walled carcass through the
     meshing grid): it gets a 5 mm slab over the rectangle its mesh stands on, and stands in

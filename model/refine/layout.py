@@ -583,13 +583,19 @@ HANDLE_GRIP = 0.03    # m: the thickest grip of the data's door and drawer handl
                       # cm thick; knob caps up to 4.8 cm across, model/data/synth/builder.py)
 HANDLE_KNOB = 0.05    # m: a pull at most this long both ways is a knob, whatever its grip
 HANDLE_BAR = 0.016    # m: the grip a thicker decoded handle gets, along its long side
+HANDLE_STAND = (0.06, 0.03)   # m: the data's handles stand 2-4.3 cm out of their panel
+                              # (model/data/synth/builder.py); one decoded standing out
+                              # further than the first stands the second
 
 
 def _slim_handles(obj: ArticulatedObject) -> int:
     """A handle on a door, drawer or lid decoded as a slab or block (a 21 x 8 cm bar, a
     10 x 12 cm block on a microwave door) gets a bar's grip: across its long side on the
     panel it is ``HANDLE_BAR`` thick, centre kept; knobs (``HANDLE_KNOB``) and handles
-    ``HANDLE_GRIP`` thick or thinner stay. -> handles slimmed."""
+    ``HANDLE_GRIP`` thick or thinner stay. A handle whose long side was decoded along the
+    panel's normal (a 58 cm bar sticking out of a door) stands ``HANDLE_STAND`` out of the
+    panel's face instead and runs along the panel's longer side, at most ``HANDLE_LENGTH``
+    of it. -> handles slimmed."""
     n = 0
     for i, p in enumerate(obj.parts):
         if p.label != "handle" or p.parent < 0 \
@@ -598,11 +604,25 @@ def _slim_handles(obj: ArticulatedObject) -> int:
         face = face_of(obj, i)
         if face is None:
             continue
-        short, long = sorted((d for d in range(3) if d != face[0]), key=lambda d: p.bbox_size[d])
+        k, side = face
+        if p.bbox_size[k] > HANDLE_STAND[0]:
+            par = obj.parts[p.parent]
+            along = max((d for d in range(3) if d != k), key=lambda d: par.bbox_size[d])
+            size, centre = p.bbox_size.copy(), p.bbox_center.copy()
+            size[along] = max(size[along], min(size[k], HANDLE_LENGTH * par.bbox_size[along]))
+            size[k] = HANDLE_STAND[1]
+            centre[k] = par.bbox_center[k] + side * (par.bbox_size[k] + size[k]) / 2
+            p.joint.origin = np.asarray(p.joint.origin, dtype=np.float64) + centre - p.bbox_center
+            p.bbox_center, p.bbox_size = centre, size
+            changed = True
+        else:
+            changed = False
+        short, long = sorted((d for d in range(3) if d != k), key=lambda d: p.bbox_size[d])
         if p.bbox_size[short] > HANDLE_GRIP and p.bbox_size[long] > HANDLE_KNOB:
             p.bbox_size = p.bbox_size.copy()
             p.bbox_size[short] = HANDLE_BAR
-            n += 1
+            changed = True
+        n += changed
     return n
 
 
