@@ -6,8 +6,9 @@ import pytest
 from model.core import ArticulatedObject, Joint, JointType, Part
 from model.data.expected_structure import ExpectedStructure
 from model.data.prompt_parse import parse_prompt
-from model.data.prompt_size import (read_size, with_usual_keypad, with_usual_layout,
-                                    with_usual_parts, with_usual_size)
+from model.data.prompt_size import (SIZE_SPREAD, read_size, read_size_words,
+                                    with_usual_keypad, with_usual_layout, with_usual_parts,
+                                    with_usual_size)
 from model.metrics.alignment import GeneratedStructure, check_alignment
 from model.refine.size import place_on_floor, scale_to_size, size_factors
 
@@ -76,6 +77,63 @@ def test_everyday_names_keep_the_body_sizes_the_data_gives_them():
     assert with_usual_layout("a filing cabinet with four drawers", cab, {}) == \
         {"drawer": {"layout": "column"}}
     assert with_usual_size("a cabinet", cab, {}, decoded=(0.5, 0.5, 0.5)) == {}
+
+
+@pytest.mark.parametrize("text,words", [
+    ("a tall bathroom cabinet", {"height": 1}),
+    ("A very tall, narrow wardrobe with two doors", {"height": 1, "width": -1}),
+    ("a small three-drawer chest", {"size": -1}),
+    ("The cabinet is tall and narrow. It has two doors.", {"height": 1, "width": -1}),
+    ("It's compact, with two doors", {"size": -1}),
+    ("a short, wide jar with a lid", {"height": -1, "width": 1}),
+    ("a long usb drive with a cap", {"length": 1}),
+    # said of parts, negated, or a name of its own: not the object's size word
+    ("a sideboard with six small drawers in two columns", {}),
+    ("a cabinet with a tall door and two small drawers", {}),
+    ("a cabinet with one wide drawer and three small ones", {}),
+    ("The drawers are small.", {}),
+    ("a cabinet that is not too tall", {}),
+    ("a small safe with a keypad", {}),          # a name (NAMED_RANGES)
+])
+def test_size_words_said_of_the_object_are_read(text, words):
+    assert read_size_words(text) == words
+
+
+def test_size_words_take_the_body_within_the_datas_spread():
+    """"a tall bathroom cabinet" decoded 0.5 m tall: the data's descriptions state sizes in
+    numbers only and the network does not read size words. A dimension said to be large
+    that is below the category's 75th percentile goes into its top quarter, one said to be
+    small above the 25th into the bottom quarter, in the decoded order (seeds still vary);
+    the other dimensions keep their decoded size."""
+    cab = "StorageFurniture"
+    lo, q1, q3, hi = SIZE_SPREAD[cab]["height"]
+    tall = [with_usual_size("a tall cabinet", cab, {}, decoded=(0.5, 0.8, h))
+            for h in (0.3, 0.6, 1.0)]
+    assert [t["height"] for t in tall] == sorted(t["height"] for t in tall)
+    assert tall[0]["height"] == q3 and all(q3 <= t["height"] <= hi for t in tall)
+    assert tall[2] == {"depth": 0.5, "width": 0.8, "height": tall[2]["height"]}
+    assert with_usual_size("a tall cabinet", cab, {}, decoded=(0.5, 0.8, 1.7)) == {}
+    assert lo <= with_usual_size("a short cabinet", cab, {},
+                                 decoded=(0.5, 0.8, 1.0))["height"] <= q1
+    assert with_usual_size("a tall cabinet 1 m tall", cab, {"height": 1.0},
+                           decoded=(0.5, 0.8, 1.3)) == {"height": 1.0}
+    # the whole body, proportions kept, each side within the data's
+    small = with_usual_size("a small cabinet", cab, {}, decoded=(0.5, 1.0, 1.0))
+    assert small["width"] == pytest.approx(small["height"]) and small["width"] < 0.8
+    size = np.exp(np.mean(np.log(list(small.values()))))
+    assert SIZE_SPREAD[cab]["size"][0] <= size <= SIZE_SPREAD[cab]["size"][1] + 1e-4
+    assert with_usual_size("a small cabinet 1 m tall", cab, {"height": 1.0},
+                           decoded=(0.5, 1.0, 1.0)) == {"height": 1.0}
+    # a name's range bounds the word; a named size is scaled
+    assert with_usual_size("a tall locker", cab, {}, decoded=(0.5, 0.5, 1.3))["height"] > q3
+    assert with_usual_size("a short locker", cab, {}, decoded=(0.5, 0.5, 1.5))["height"] == 1.2
+    assert with_usual_size("a small safe", "Safe", {}, decoded=(0.5, 0.7, 0.6)) == \
+        {"depth": 0.5, "width": 0.47, "height": 0.36}
+    assert with_usual_size("a large microwave", "Oven", {}) == \
+        {"width": 0.625, "height": 0.375, "depth": 0.475}
+    # a USB stick's "short" is its length
+    usb = with_usual_size("a short usb stick", "USB", {}, decoded=(0.06, 0.018, 0.008))
+    assert usb["depth"] <= SIZE_SPREAD["USB"]["depth"][1] and usb["height"] == 0.008
 
 
 def test_a_safes_uncounted_keypad_gets_the_usual_three_by_three_keys():

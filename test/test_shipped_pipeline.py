@@ -173,3 +173,20 @@ def test_a_locker_is_tall_and_a_filing_cabinet_one_narrow_column_of_drawers(gen)
         assert len(drawers) == 4 and obj.parts[0].bbox_size[1] < 0.6, seed
         ys = [p.bbox_center[1] for p in drawers]
         assert max(ys) - min(ys) < 0.01, (seed, ys)                    # one column
+
+
+def test_size_words_give_the_body_its_size_and_seeds_still_vary_it(gen):
+    """"a tall bathroom cabinet" decoded 0.46-0.56 m tall with seeds 0-3 (storage furniture
+    is 0.74-1.52 m tall between its quartiles): the network does not read size words. The
+    body goes into the matching quarter of the data's sizes for its category."""
+    from model.data.prompt_size import SIZE_SPREAD
+    heights = []
+    for seed in range(4):
+        trees, *_ = gen.decode_trees("a tall bathroom cabinet", seed=seed)
+        body = gen.layout(trees[0]).parts[0]
+        heights.append(round(float(body.bbox_size[2]), 3))
+        assert body.bbox_size[2] >= SIZE_SPREAD["StorageFurniture"]["height"][2] - 1e-3, seed
+        trees, *_ = gen.decode_trees("a compact oven with two knobs", seed=seed)
+        size = np.prod(gen.layout(trees[0]).parts[0].bbox_size) ** (1 / 3)
+        assert size <= SIZE_SPREAD["Oven"]["size"][1] + 1e-3, (seed, size)
+    assert len(set(heights)) >= 3, heights

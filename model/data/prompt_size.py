@@ -17,6 +17,8 @@ from __future__ import annotations
 
 import re
 
+import numpy as np
+
 from model.core.structure import SIZE_LIMITS as LIMITS
 from model.data.expected_structure import ARRANGEMENT_KEYS
 
@@ -61,6 +63,8 @@ NAMED_RANGES: dict[str, list[tuple[tuple[str, ...], dict[str, tuple[float, float
                                                                "height": (0.0, 0.75, 0.59)}),
         (("sideboard", "credenza"), {"width": (1.0, 9.9, 1.34), "height": (0.0, 1.1, 0.71)}),
     ],
+    "Safe": [(("microwave-sized safe", "small safe", "compact safe"),
+              {"width": (0.0, 0.6, 0.47), "height": (0.0, 0.45, 0.36)})],
 }
 
 
@@ -84,6 +88,145 @@ def read_size(text: str) -> dict[str, float]:
         dim = _WORDS[word]
         if LIMITS[0] <= value <= LIMITS[1] and dim not in out:
             out[dim] = round(value, 4)
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# size words: "a tall cabinet", "a small safe", "a narrow wardrobe"
+# --------------------------------------------------------------------------------------------
+# The data's descriptions state sizes in numbers only, so the network does not read size
+# words ("a tall bathroom cabinet" decoded 0.46-0.56 m tall); they are read here and give the
+# body a size in the matching quarter of its category's spread. Body sizes of synth-v6 val +
+# test (model/data/synth, 2000 objects), m: per dimension (depth, width, height) and for the
+# body's overall size (the geometric mean of its sides) the lowest, the 25th and 75th
+# percentiles and the highest.
+SIZE_SPREAD: dict[str, dict[str, tuple[float, float, float, float]]] = {
+    "StorageFurniture": {"depth": (0.35, 0.408, 0.534, 0.60),
+                         "width": (0.402, 0.668, 1.292, 1.60),
+                         "height": (0.401, 0.744, 1.523, 1.895),
+                         "size": (0.445, 0.654, 0.889, 1.179)},
+    "Safe": {"depth": (0.301, 0.388, 0.533, 0.599), "width": (0.30, 0.418, 0.596, 0.699),
+             "height": (0.253, 0.433, 0.745, 0.897), "size": (0.351, 0.446, 0.555, 0.677)},
+    "Oven": {"depth": (0.50, 0.54, 0.607, 0.65), "width": (0.501, 0.624, 0.805, 0.90),
+             "height": (0.45, 0.565, 0.805, 0.95), "size": (0.494, 0.607, 0.694, 0.79)},
+    "WashingMachine": {"depth": (0.50, 0.537, 0.616, 0.65), "width": (0.551, 0.587, 0.662, 0.699),
+                       "height": (0.80, 0.834, 0.907, 0.95), "size": (0.612, 0.657, 0.695, 0.741)},
+    "Bottle": {"depth": (0.05, 0.068, 0.102, 0.119), "width": (0.05, 0.068, 0.102, 0.119),
+               "height": (0.117, 0.169, 0.257, 0.311), "size": (0.072, 0.097, 0.128, 0.159)},
+    "USB": {"depth": (0.042, 0.049, 0.061, 0.072), "width": (0.014, 0.017, 0.022, 0.024),
+            "height": (0.006, 0.007, 0.010, 0.011), "size": (0.016, 0.019, 0.022, 0.025)},
+}
+
+# word -> (dimension, +1 larger / -1 smaller); "size" is the whole body (proportions kept),
+# "length" its longest side as decoded. "short" is a body's height ("a short cabinet"),
+# a USB stick's length ("SHORT_IS_LENGTH").
+SIZE_WORDS: dict[str, tuple[str, int]] = {
+    **{w: ("height", 1) for w in ("tall", "high")},
+    **{w: ("height", -1) for w in ("short", "low", "squat", "low-profile")},
+    **{w: ("width", 1) for w in ("wide", "broad")},
+    **{w: ("width", -1) for w in ("narrow", "slim", "slender")},
+    "deep": ("depth", 1), "shallow": ("depth", -1), "long": ("length", 1),
+    **{w: ("size", 1) for w in ("large", "big", "huge", "giant", "oversized", "jumbo")},
+    **{w: ("size", -1) for w in ("small", "little", "compact", "mini", "tiny", "miniature")},
+}
+SHORT_IS_LENGTH = ("USB",)
+# a named size (NAMED_SIZES: a microwave) is not the data's: a size word scales it
+NAMED_SIZE_STEP = 1.25
+_INTENSIFIERS = {"very", "extra", "quite", "rather", "fairly", "really", "super", "extremely",
+                 "relatively", "pretty", "particularly", "especially", "slightly", "a", "bit"}
+_NEGATIONS = {"not", "isn't", "never", "no", "nor", "too"}
+_LINKS = {"is", "it's", "looks", "stands", "seems"}
+_CLAUSE_ENDS = {"with", "of", "in", "on", "that", "which", "for", "to", "at", "has", "having",
+                "featuring", "is", "are", "whose", "where", "behind", "above", "below", "under"}
+
+
+def _describes_object(toks, i: int) -> bool:
+    """Whether the size word ``toks[i]`` is said of the object, not of a part: before the
+    object's name in its noun phrase ("a tall, narrow bathroom cabinet", "a small
+    three-drawer chest", not "six small drawers"), or after "is" with the object (or "it")
+    as the subject ("the cabinet is tall", not "the drawers are small")."""
+    for t in toks[i + 1:i + 7]:                        # attributive: the object's name follows
+        if t.kind == "CAT":
+            return True
+        if (t.kind == "PART" and t.plural) or t.kind in ("DET", "LOWER", "DIST") or (
+                t.kind == "PUNCT" and t.text != ",") or t.text in _CLAUSE_ENDS:
+            break
+    j = i - 1                                          # predicative: "<subject> is (very) tall"
+    while j >= 0 and (toks[j].text in _INTENSIFIERS or toks[j].text in ("and", ",")
+                      or toks[j].text in SIZE_WORDS):
+        j -= 1
+    if j < 0 or toks[j].text not in _LINKS:
+        return False
+    if toks[j].text == "it's":
+        return True
+    for t in reversed(toks[:j]):
+        if t.kind in ("CAT", "PART"):
+            return t.kind == "CAT"
+        if t.text in ("it", "this"):
+            return True
+    return False
+
+
+def read_size_words(text: str) -> dict[str, int]:
+    """The size words ``text`` says of the object: dimension ("height", "width", "depth",
+    "length", or "size" for all of it) -> +1 (tall, wide, large, ...) or -1 (short, narrow,
+    small, ...); the first word for a dimension wins, a negated one ("not too tall") counts
+    for nothing."""
+    from .prompt_lexicon import _sentences, _tokenize
+
+    out: dict[str, int] = {}
+    for sentence in _sentences(text):
+        toks = _tokenize(sentence)
+        for i, tok in enumerate(toks):
+            if tok.kind != "WORD" or tok.text not in SIZE_WORDS:
+                continue
+            if i and toks[i - 1].text in _NEGATIONS or not _describes_object(toks, i):
+                continue
+            dim, sign = SIZE_WORDS[tok.text]
+            out.setdefault(dim, sign)
+    return out
+
+
+def _into_quarter(value: float, spread: tuple[float, float, float, float], sign: int) -> float:
+    """``value`` moved into the top quarter of ``spread`` (lowest, p25, p75, highest) when
+    ``sign`` > 0 and it is below the 75th percentile, into the bottom quarter when ``sign`` < 0
+    and it is above the 25th: mapped linearly, so decoded sizes keep their order (seeds
+    still vary the size); otherwise kept."""
+    lo, q1, q3, hi = spread
+    if sign > 0 and value < q3:
+        return q3 + float(np.clip((value - lo) / (q3 - lo), 0.0, 1.0)) * (hi - q3)
+    if sign < 0 and value > q1:
+        return lo + float(np.clip((value - q1) / (hi - q1), 0.0, 1.0)) * (q1 - lo)
+    return value
+
+
+def _sized(category: str, words: dict[str, int], stated: dict, have: dict[str, float],
+           ranges: dict | None) -> dict[str, float]:
+    """``have`` (the body's depth, width, height in m) with ``words`` (read_size_words) given
+    within the data's spread of ``category`` (SIZE_SPREAD, ``_into_quarter``): "tall" puts the
+    height in the tallest quarter, "narrow" the width in the narrowest; "large" / "small" scale
+    the whole body alike so its overall size is in the largest / smallest quarter (each side
+    kept within the data's), unless the text states a dimension. Stated dimensions are kept;
+    a name's range (NAMED_RANGES) bounds the result."""
+    spread = SIZE_SPREAD.get(category)
+    out = dict(have)
+    if spread is None:
+        return out
+    if "size" in words and not stated:
+        size = float(np.exp(np.mean(np.log([out[d] for d in AXIS]))))
+        factor = _into_quarter(size, spread["size"], words["size"]) / size
+        for dim in AXIS:
+            out[dim] = float(np.clip(out[dim] * factor, spread[dim][0], spread[dim][3]))
+    for dim, sign in words.items():
+        if dim == "size":
+            continue
+        if dim == "length" or (dim == "height" and sign < 0 and category in SHORT_IS_LENGTH):
+            dim = max(AXIS, key=lambda d: out[d])
+        if dim not in stated:
+            out[dim] = _into_quarter(out[dim], spread[dim], sign)
+    for dim, (lo, hi, _) in (ranges or {}).items():
+        if dim not in stated:
+            out[dim] = float(np.clip(out[dim], lo, hi))
     return out
 
 
@@ -129,28 +272,36 @@ def with_usual_size(text: str, category: str | None, stated: dict | None,
     name of ``NAMED_RANGES`` ("a locker") gives every open dimension outside its range the
     name's median and keeps the others as decoded, unless the text's ``spatial`` facts
     (label -> facts) arrange parts ("a filing cabinet with drawers in two columns" keeps the
-    width its columns need). Not a stated fact: the alignment metric checks ``stated``
-    only."""
+    width its columns need); then the size words the text says of the object ("a tall
+    cabinet", ``read_size_words``) take their dimensions within the data's spread
+    (``SIZE_SPREAD``). Not a stated fact: the alignment metric checks ``stated`` only."""
     out = dict(stated or {})
     if "length" in out:
         return out
+    words = read_size_words(text) if category else {}
     for names, usual in NAMED_SIZES.get(category or "", []):
         if _named(text, names):
             for dim, value in usual.items():
-                out.setdefault(dim, value)
+                sign = words.get(dim, 0) + (words.get("size", 0) if not stated else 0)
+                out.setdefault(dim, round(float(value * NAMED_SIZE_STEP ** np.sign(sign)), 4))
             return out
-    if decoded is None or any(f.keys() & ARRANGEMENT_KEYS for f in (spatial or {}).values()):
+    if decoded is None:
         return out
-    for names, ranges in NAMED_RANGES.get(category or "", []):
+    have = {dim: float(decoded[ax]) for dim, ax in AXIS.items()}
+    want, ranges = dict(have), None
+    arranged = any(f.keys() & ARRANGEMENT_KEYS for f in (spatial or {}).values())
+    for names, name_ranges in NAMED_RANGES.get(category or "", []):
         if not _named(text, names):
             continue
-        have = {dim: float(decoded[ax]) for dim, ax in AXIS.items()}
-        fixed = {dim: mid for dim, (lo, hi, mid) in ranges.items()
-                 if dim not in out and not lo <= have[dim] <= hi}
-        if fixed:       # the other dimensions keep their decoded size (scale_to_size would
-            for dim, value in have.items():          # scale an open one with the rest)
-                out.setdefault(dim, fixed.get(dim, round(value, 4)))
+        ranges = name_ranges
+        if not arranged:
+            want.update({dim: mid for dim, (lo, hi, mid) in ranges.items()
+                         if dim not in out and not lo <= have[dim] <= hi})
         break
+    want = _sized(category, words, out, want, ranges if not arranged else None)
+    if any(abs(want[dim] - have[dim]) > 1e-9 for dim in AXIS if dim not in out):
+        for dim, value in want.items():       # every dimension, so an open one keeps its
+            out.setdefault(dim, round(value, 4))   # size (scale_to_size would scale it)
     return out
 
 
