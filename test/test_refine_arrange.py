@@ -449,3 +449,26 @@ def test_a_stated_grid_gathers_members_the_network_put_under_the_body():
     _layout_same(obj, "mail-slot style cabinet w/ 12 small doors, 6 across x 2 down")
     doors = [i for i, p in enumerate(obj.parts) if p.label == "door"]
     assert _grid_of(obj, doors) == ("grid", 2, 6)
+
+
+def test_a_left_door_and_a_right_door_are_side_by_side():
+    """"A tall wardrobe with a left door and a right door": the network stacked the two doors
+    (seeds 0-3). A group stated on as many sides as it has members is a row (a column for
+    upper and lower); members already on those sides are left where they are."""
+    def wardrobe(doors):
+        return ArticulatedObject(category="StorageFurniture", name="w", parts=[
+            _part("body_0", "body", -1, (0.5, 1.0, 1.8), (0, 0, 0.9)), *doors])
+    stacked = wardrobe([_door(0, (0.02, 0.96, 0.85), (0.26, 0, 1.35), (0.27, -0.48, 1.35)),
+                        _door(1, (0.02, 0.96, 0.85), (0.26, 0, 0.45), (0.27, -0.48, 0.45))])
+    _layout_same(stacked, "a wardrobe with a left door and a right door")
+    assert sorted(part_position(stacked, i)[0] for i in (1, 2)) == ["left", "right"]
+    assert abs(stacked.parts[1].bbox_center[2] - stacked.parts[2].bbox_center[2]) < 0.01
+    apart = wardrobe([_door(0, (0.02, 0.47, 1.7), (0.26, -0.25, 0.9), (0.27, -0.49, 0.9)),
+                      _door(1, (0.02, 0.47, 1.7), (0.26, 0.25, 0.9), (0.27, 0.49, 0.9))])
+    before = [p.bbox_center.copy() for p in apart.parts]
+    assert arrange_stated(apart, parse_prompt("a left door and a right door").spatial) == []
+    assert all(np.allclose(b, p.bbox_center) for b, p in zip(before, apart.parts))
+    upper = wardrobe([_door(0, (0.02, 0.47, 1.7), (0.26, -0.25, 0.9), (0.27, -0.49, 0.9)),
+                      _door(1, (0.02, 0.47, 1.7), (0.26, 0.25, 0.9), (0.27, 0.49, 0.9))])
+    _layout_same(upper, "a cabinet with an upper door and a lower door")
+    assert sorted(part_position(upper, i)[1] for i in (1, 2)) == ["bottom", "top"]

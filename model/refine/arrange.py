@@ -51,7 +51,7 @@ def arrange_stated(obj: ArticulatedObject, spatial: Optional[dict]) -> list[str]
     "door left of drawer"] (rows x parts in the widest row)."""
     done, grids = [], []
     for label, facts in (spatial or {}).items():
-        grid = _grid(facts, sum(p.label == label for p in obj.parts))
+        grid = _grid(_sides_as_line(obj, label, facts), sum(p.label == label for p in obj.parts))
         group = _grid_group(obj, label) if grid is not None else None
         if group is not None and _lay_out(obj, group, grid):
             grids.append(group)
@@ -450,6 +450,24 @@ def _mirror_vertically(obj: ArticulatedObject, label: str, group: list[int], key
         if (z > oz) == (key == "above"):
             return False          # already the stated way round
     return _mirror(obj, group, V)
+
+
+def _sides_as_line(obj: ArticulatedObject, label: str, facts: dict) -> dict:
+    """``facts`` with a row (a column) for a group stated on as many sides left / middle /
+    right (top / middle / bottom) as it has members and no arrangement: "a left door and a
+    right door" are side by side, "an upper and a lower door" one above the other. The
+    network stacked a wardrobe's "left door and right door" (seed 1). Unchanged when the
+    members already sit on those sides."""
+    from model.data.spatial import part_position
+
+    idx = [i for i, p in enumerate(obj.parts) if p.label == label]
+    if len(idx) < 2 or any(facts.get(k) for k in ARRANGEMENT_KEYS):
+        return facts
+    for k, (key, layout) in enumerate((("hpos", "row"), ("vpos", "column"))):
+        want = set(facts.get(key) or [])
+        if len(want) == len(idx) and want != {part_position(obj, i)[k] for i in idx}:
+            return {**facts, "layout": layout}
+    return facts
 
 
 def _grid(facts: dict, n: int) -> Optional[list[int]]:
