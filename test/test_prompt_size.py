@@ -127,6 +127,7 @@ def test_size_words_take_the_body_within_the_datas_spread():
     # a name's range bounds the word; a named size is scaled
     assert with_usual_size("a tall locker", cab, {}, decoded=(0.5, 0.5, 1.3))["height"] > q3
     assert with_usual_size("a short locker", cab, {}, decoded=(0.5, 0.5, 1.5))["height"] == 1.2
+    assert with_usual_size("a tall nightstand", cab, {}, decoded=(0.4, 0.5, 0.5))["height"] == 0.75
     assert with_usual_size("a small safe", "Safe", {}, decoded=(0.5, 0.7, 0.6)) == \
         {"depth": 0.5, "width": 0.47, "height": 0.36}
     assert with_usual_size("a large microwave", "Oven", {}) == \
