@@ -74,6 +74,7 @@ def test_a_microwave_is_an_oven_whose_door_hangs_on_its_left_side():
 
 def test_nothing_to_hold_or_a_part_the_category_lacks():
     assert not stated_counts(parse_prompt("a cabinet"))
+    assert stated_counts(parse_prompt("a cabinet with doors"))           # a lower bound
     assert not stated_counts(parse_prompt("a bottle"))
     e = parse_prompt("a bottle with three drawers")
     assert structure_for(e, "Bottle", _all_labels("Bottle")) is None
@@ -134,9 +135,11 @@ def test_shipped_model_builds_the_size_the_prompt_states(shipped):
         shipped.decode_trees("a cabinet", size={"tall": 1.0})
 
 
-def test_shipped_model_without_stated_counts_or_when_off_decodes_freely(shipped):
-    trees, *_ = shipped.decode_trees("a cabinet with drawers", seed=0)   # a bound, no count
-    assert trees[0].structure is None and trees[0].category == "StorageFurniture"
+def test_shipped_model_holds_bounds_and_usual_parts_and_decodes_freely_when_off(shipped):
+    # a lower bound alone is held too: "a cabinet with doors" decoded one door, seeds 0-3
+    for seed in range(4):
+        trees, *_ = shipped.decode_trees("a cabinet with doors", seed=seed)
+        assert trees[0].structure is not None and trees[0].labels.count("door") >= 2, seed
     # a bare name is held to its usual parts (model.data.prompt_size.with_usual_parts)
     trees, *_ = shipped.decode_trees("a bottle", seed=0)
     assert trees[0].structure["cap"] == {"count": 1} and trees[0].labels.count("cap") == 1

@@ -31,8 +31,9 @@ CATEGORY_SYNONYMS: dict[str, dict[str, str]] = {
 
 def stated_counts(expected) -> bool:
     """Whether a parsed prompt (``ExpectedStructure``) fixes the count of any part but the
-    body: only then is there something to hold decoding to."""
-    return any(lab != "body" for lab in expected.counts)
+    body, or bounds it from below ("a cabinet with doors": at least two; the network alone
+    made one with every seed 0-3): only then is there something to hold decoding to."""
+    return any(lab != "body" for lab in (*expected.counts, *expected.min_counts))
 
 
 def structure_for(expected, category: str, labels: Iterable[str],
