@@ -132,6 +132,9 @@ def test_size_words_take_the_body_within_the_datas_spread():
         {"depth": 0.5, "width": 0.47, "height": 0.36}
     assert with_usual_size("a large microwave", "Oven", {}) == \
         {"width": 0.625, "height": 0.375, "depth": 0.475}
+    # a bottle's width and depth are one diameter
+    jar = with_usual_size("a short, wide jar", "Bottle", {}, decoded=(0.08, 0.08, 0.2))
+    assert jar["depth"] == jar["width"] >= SIZE_SPREAD["Bottle"]["width"][2]
     # a USB stick's "short" is its length
     usb = with_usual_size("a short usb stick", "USB", {}, decoded=(0.06, 0.018, 0.008))
     assert usb["depth"] <= SIZE_SPREAD["USB"]["depth"][1] and usb["height"] == 0.008

@@ -130,6 +130,7 @@ SIZE_WORDS: dict[str, tuple[str, int]] = {
     **{w: ("size", -1) for w in ("small", "little", "compact", "mini", "tiny", "miniature")},
 }
 SHORT_IS_LENGTH = ("USB",)
+ROUND = ("Bottle",)     # width and depth are one diameter: a word for either scales both
 # a named size (NAMED_SIZES: a microwave) is not the data's: a size word scales it
 NAMED_SIZE_STEP = 1.25
 _INTENSIFIERS = {"very", "extra", "quite", "rather", "fairly", "really", "super", "extremely",
@@ -204,7 +205,8 @@ def _sized(category: str, words: dict[str, int], stated: dict, have: dict[str, f
            ranges: dict | None) -> dict[str, float]:
     """``have`` (the body's depth, width, height in m) with ``words`` (read_size_words) given
     within the data's spread of ``category`` (SIZE_SPREAD, ``_into_quarter``): "tall" puts the
-    height in the tallest quarter, "narrow" the width in the narrowest; "large" / "small" scale
+    height in the tallest quarter, "narrow" the width in the narrowest (a bottle's depth
+    with it, ``ROUND``); "large" / "small" scale
     the whole body alike so its overall size is in the largest / smallest quarter (each side
     kept within the data's), unless the text states a dimension. Stated dimensions are kept;
     a name's range (NAMED_RANGES) bounds the result."""
@@ -223,7 +225,11 @@ def _sized(category: str, words: dict[str, int], stated: dict, have: dict[str, f
         if dim == "length" or (dim == "height" and sign < 0 and category in SHORT_IS_LENGTH):
             dim = max(AXIS, key=lambda d: out[d])
         if dim not in stated:
-            out[dim] = _into_quarter(out[dim], spread[dim], sign)
+            was, out[dim] = out[dim], _into_quarter(out[dim], spread[dim], sign)
+            if category in ROUND and dim in ("width", "depth"):
+                other = "depth" if dim == "width" else "width"
+                if other not in stated:
+                    out[other] *= out[dim] / was
     for dim, (lo, hi, _) in (ranges or {}).items():
         if dim not in stated:
             out[dim] = float(np.clip(out[dim], lo, hi))
