@@ -1052,6 +1052,36 @@ def test_a_lid_or_cap_hovering_over_its_parents_mesh_comes_down_onto_it(label):
     assert settle_onto_parents(obj, mans) == []
 
 
+def test_a_bottle_lid_wider_than_its_neck_is_fitted_to_the_neck():
+    """"a wide bottle with a flip lid" seed 1: the layout sized the lid (9 cm) to the body's
+    box, the shape prior drew a 6 cm neck, and the hinge on the lid's edge hung 1.1 cm off
+    the neck (the audit's attachment failed). The lid is scaled in its plane to the rim plus
+    LIP about the rim's centre, its hinge with its edge; a lid that fits stays."""
+    from model.core import meshops
+    from model.refine.meshes import LIP, NECK_GAP, fit_lids_to_necks
+    joint = Joint(JointType.REVOLUTE, (-0.045, 0, 0.176), (0, -1, 0), r_range=(0, 2.0))
+    obj = ArticulatedObject(category="Bottle", name="bottle", parts=[
+        _part("body_0", "body", -1, (0.1, 0.1, 0.17), (0, 0, 0.085)),
+        _part("lid_0", "lid", 0, (0.09, 0.09, 0.006), (0, 0, 0.173), joint)])
+    obj.parts[1].collision = [trimesh.primitives.Box(extents=(0.09, 0.09, 0.006),
+                                                     transform=trimesh.transformations
+                                                     .translation_matrix((0, 0, 0.173)))]
+    body = meshops.union_manifolds([meshops.box((0.1, 0.1, 0.14), (0, 0, 0.07)),
+                                    meshops.box((0.06, 0.06, 0.03), (0, 0, 0.155))])
+    mans = {0: body, 1: meshops.box((0.09, 0.09, 0.006), (0, 0, 0.173))}
+    line = meshops.axis_line(joint.origin, joint.axis, 1.0)
+    assert float(line.min_gap(mans[0], 0.05)) - 0.006 > NECK_GAP
+    assert fit_lids_to_necks(obj, mans) == ["lid_0"]
+    lid = obj.parts[1]
+    assert lid.bbox_size[:2] == pytest.approx((0.06 + 2 * LIP,) * 2)
+    assert lid.bbox_size[2] == pytest.approx(0.006) and lid.bbox_center[2] == pytest.approx(0.173)
+    assert lid.joint.origin == pytest.approx((-0.03 - LIP, 0, 0.176))
+    assert float(meshops.axis_line(lid.joint.origin, joint.axis, 1.0).min_gap(mans[0], 0.05)) \
+        - 0.006 <= NECK_GAP
+    assert lid.collision[0].primitive.extents == pytest.approx((0.064, 0.064, 0.006))
+    assert fit_lids_to_necks(obj, mans) == []                  # fitted: left alone
+
+
 def test_a_sliver_touching_a_part_at_one_vertex_is_not_written():
     """A 4-face tetrahedron sharing one vertex with a box is its own shell to a reader (the
     audit counts it as a floater); the stored mesh drops it and stays closed."""

@@ -55,6 +55,7 @@ def refine_meshes(obj: ArticulatedObject, config: Optional[RefineConfig] = None,
     report: dict = {"simplify_tolerance": tol}
     if cfg.settle and not frozen:
         report["settled"] = M.settle_onto_parents(obj, mans)
+        report["lids_fitted"] = M.fit_lids_to_necks(obj, mans)
     if cfg.panels and not frozen:
         report["control_panels"] = M.add_control_panels(obj, mans)
     if cfg.carve:

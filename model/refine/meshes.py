@@ -338,6 +338,78 @@ def settle_onto_parents(obj: ArticulatedObject, mans: dict, gap: float = SETTLE_
     return moved
 
 
+NECK_GAP = 0.003   # m: a bottle lid's hinge line this much further from its body's mesh than
+                   # the lid is thick is off the neck
+RIM_DEPTH = 0.005  # m: the body's mesh this far below the lid is the rim its lid covers
+LIP = 0.002        # m: how far a fitted lid reaches past the rim all round
+
+
+def fit_lids_to_necks(obj: ArticulatedObject, mans: dict) -> list[str]:
+    """A bottle's flip lid wider than the neck its body's mesh ends in gets the neck's size:
+    the layout sizes the lid to the body's *box*, and where the shape prior draws a narrower
+    neck (a widened bottle's 9 cm lid over a 6 cm neck) the hinge on the lid's edge hangs in
+    the air beside the neck (1.1 cm off it). The lid (mesh, collision pieces, box) is scaled
+    in its plane about the rim's centre to the rim's outline plus ``LIP``, and its hinge moves
+    with its edge; the data's flip lids cover the mouth and hinge on the neck. Lids with
+    parts on them are left. Returns the lids fitted."""
+    fitted = []
+    if obj.category != "Bottle":
+        return fitted
+    for k in _meshed_on_parent(obj, mans, ("lid",)):
+        p = obj.parts[k]
+        par = p.parent
+        if not p.joint.type.rotates or obj.children(k):
+            continue
+        n = int(np.argmin(p.bbox_size))
+        line = meshops.axis_line(p.joint.origin, p.joint.axis, 1.0)
+        if float(line.min_gap(mans[par], 0.05)) - float(p.bbox_size[n]) <= NECK_GAP:
+            continue            # a hinge bridges the lid's thickness to its parent
+        lo, hi = (np.asarray(b, dtype=np.float64) for b in
+                  np.asarray(mans[k].bounding_box()).reshape(2, 3))
+        verts = np.asarray(mans[par].to_mesh().vert_properties)[:, :3]
+        below = float(np.sign(obj.parts[par].bbox_center[n] - p.bbox_center[n]) or -1.0)
+        face = lo[n] if below < 0 else hi[n]
+        rim = verts[np.abs(verts[:, n] - face) <= RIM_DEPTH]
+        if not len(rim):
+            continue
+        plane = [d for d in range(3) if d != n]
+        scale, centre = np.ones(3), np.zeros(3)
+        for d in plane:
+            want = float(np.ptp(rim[:, d])) + 2 * LIP
+            scale[d] = min(1.0, want / max(hi[d] - lo[d], 1e-9))
+            centre[d] = float(rim[:, d].min() + rim[:, d].max()) / 2
+        if scale.min() > 0.999:
+            continue
+        T = np.eye(4)
+        T[:3, :3] = np.diag(scale)
+        T[:3, 3] = centre * (1.0 - scale)
+        mans[k] = mans[k].transform(meshops.affine34(T))
+        if p.mesh is not None:
+            p.mesh.apply_transform(T)
+        if p.collision:
+            p.collision = [_scaled_piece(c, T) for c in p.collision]
+        p.bbox_center = T[:3, :3] @ p.bbox_center + T[:3, 3]
+        p.bbox_size = p.bbox_size * scale
+        p.joint.origin = T[:3, :3] @ np.asarray(p.joint.origin, dtype=np.float64) + T[:3, 3]
+        fitted.append(p.name)
+    return fitted
+
+
+def _scaled_piece(piece, T: np.ndarray):
+    """A collision piece under the axis-aligned scaling ``T``: an axis-aligned box (the
+    pieces' kind, model.export.collision) stays a box, with its centre and extents scaled;
+    any other mesh is transformed."""
+    import trimesh
+
+    if not isinstance(piece, trimesh.primitives.Box):
+        return piece.copy().apply_transform(T)
+    B = np.asarray(piece.primitive.transform, dtype=np.float64)
+    extents = np.abs(B[:3, :3]) @ np.asarray(piece.primitive.extents, dtype=np.float64)
+    box = np.eye(4)
+    box[:3, 3] = T[:3, :3] @ B[:3, 3] + T[:3, 3]
+    return trimesh.primitives.Box(extents=extents * np.diag(T)[:3], transform=box)
+
+
 PANEL = 0.015      # m: depth of the plate put behind controls with nothing behind them
 BACKED = 0.3       # share of a control's footprint slab the parent must fill to hold it
 
