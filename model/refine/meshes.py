@@ -364,8 +364,7 @@ def fit_lids_to_necks(obj: ArticulatedObject, mans: dict) -> list[str]:
         line = meshops.axis_line(p.joint.origin, p.joint.axis, 1.0)
         if float(line.min_gap(mans[par], 0.05)) - float(p.bbox_size[n]) <= NECK_GAP:
             continue            # a hinge bridges the lid's thickness to its parent
-        lo, hi = (np.asarray(b, dtype=np.float64) for b in
-                  np.asarray(mans[k].bounding_box()).reshape(2, 3))
+        lo, hi = np.asarray(mans[k].bounding_box(), dtype=np.float64).reshape(2, 3)
         verts = np.asarray(mans[par].to_mesh().vert_properties)[:, :3]
         below = float(np.sign(obj.parts[par].bbox_center[n] - p.bbox_center[n]) or -1.0)
         face = lo[n] if below < 0 else hi[n]
@@ -397,17 +396,16 @@ def fit_lids_to_necks(obj: ArticulatedObject, mans: dict) -> list[str]:
 
 def _scaled_piece(piece, T: np.ndarray):
     """A collision piece under the axis-aligned scaling ``T``: an axis-aligned box (the
-    pieces' kind, model.export.collision) stays a box, with its centre and extents scaled;
-    any other mesh is transformed."""
+    pieces' kind, model.export.collision) stays a box over its scaled bounds; any other
+    mesh is transformed."""
     import trimesh
 
-    if not isinstance(piece, trimesh.primitives.Box):
+    from model.export.collision import is_box
+    if not is_box(piece):
         return piece.copy().apply_transform(T)
-    B = np.asarray(piece.primitive.transform, dtype=np.float64)
-    extents = np.abs(B[:3, :3]) @ np.asarray(piece.primitive.extents, dtype=np.float64)
-    box = np.eye(4)
-    box[:3, 3] = T[:3, :3] @ B[:3, 3] + T[:3, 3]
-    return trimesh.primitives.Box(extents=extents * np.diag(T)[:3], transform=box)
+    lo, hi = (T[:3, :3] @ b + T[:3, 3] for b in np.asarray(piece.bounds, dtype=np.float64))
+    return trimesh.primitives.Box(extents=hi - lo, transform=trimesh.transformations
+                                  .translation_matrix((lo + hi) / 2))
 
 
 PANEL = 0.015      # m: depth of the plate put behind controls with nothing behind them
