@@ -116,6 +116,19 @@ def test_parse_free_form(prompt, category, counts, lower, joints):
      "StorageFurniture drawer=10 drawer.layout=grid drawer.rows=2 drawer.columns=5"),
     ("a big chest with six pairs of drawers side by side", "StorageFurniture drawer=12 "
      "drawer.layout=grid drawer.rows=6 drawer.columns=2"),
+    # an upper and a lower tier: as many in each is two rows; otherwise counted in both
+    ("a hutch with two upper doors and two lower doors", "StorageFurniture door=4 "
+     "door.layout=grid door.rows=2 door.columns=2"),
+    ("a hutch with 3 upper and 3 lower glass doors", "StorageFurniture door=6 "
+     "door.layout=grid door.rows=2 door.columns=3"),
+    ("a cabinet with two upper doors and one lower door", "StorageFurniture door=3 "
+     "door.vpos=bottom/top"),
+    ("a cabinet with two upper and one lower door", "StorageFurniture door=3 "
+     "door.vpos=bottom/top"),
+    ("a cabinet with two upper doors and two lower drawers", "StorageFurniture door=2 "
+     "drawer=2 door.vpos=top drawer.vpos=bottom"),
+    # a name with "under-" places nothing
+    ("an under-sink cabinet with two doors", "StorageFurniture door=2"),
     # the middle: "in the middle (of the door)", "top center"
     ("a safe, the combination dial sits in the middle of the door", "Safe dial=1 door=1 "
      "dial.hpos=middle"),

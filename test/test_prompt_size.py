@@ -140,6 +140,31 @@ def test_size_words_take_the_body_within_the_datas_spread():
     assert usb["depth"] <= SIZE_SPREAD["USB"]["depth"][1] and usb["height"] == 0.008
 
 
+def test_a_body_far_outside_its_categorys_sizes_takes_the_datas_usual_size():
+    """"a thermos with a screw-on cap" (a word the data lacks) decoded as a 35 x 46 x 45 cm
+    bottle, "a small safe with a digital keypad" as a 14 x 7 x 2.5 cm safe (its keypad's
+    columns then also skipped the name's range). A dimension more than GROSS times beyond
+    the data's spread takes the middle of it; stated ones stay; bodies somewhat beyond the
+    data (a 1.06 m gun safe, a 2.05 m wardrobe) keep their decoded size."""
+    mid = {d: (SIZE_SPREAD["Bottle"][d][1] + SIZE_SPREAD["Bottle"][d][2]) / 2
+           for d in ("depth", "width", "height")}
+    thermos = with_usual_size("a thermos with a screw-on cap", "Bottle", {},
+                              decoded=(0.35, 0.46, 0.45))
+    assert thermos == pytest.approx(mid, abs=1e-4)
+    assert with_usual_size("a 30 cm tall thermos", "Bottle", {"height": 0.3},
+                           decoded=(0.35, 0.46, 0.45)) == \
+        pytest.approx({"height": 0.3, "depth": mid["depth"], "width": mid["width"]}, abs=1e-4)
+    text = "a small safe with a digital keypad"
+    said = with_usual_keypad(text, parse_prompt(text))
+    assert said.spatial["button"]                                   # keys in columns
+    safe = with_usual_size(text, "Safe", {}, decoded=(0.143, 0.068, 0.025),
+                           spatial=said.spatial)
+    assert 0.4 < safe["depth"] < 0.55 and safe["width"] <= 0.6 and 0.3 < safe["height"] <= 0.45
+    assert with_usual_size("a gun safe", "Safe", {}, decoded=(0.5, 0.5, 1.06)) == {}
+    assert with_usual_size("a wardrobe", "StorageFurniture", {},
+                           decoded=(0.55, 1.2, 2.05)) == {}
+
+
 def test_a_safes_uncounted_keypad_gets_the_usual_three_by_three_keys():
     said = parse_prompt("a safe with a keypad and a door")
     assert said.min_counts == {"button": 2}                      # the stated fact

@@ -44,6 +44,21 @@ def test_joint_types_hinge_sides_and_synonyms():
     assert structure_for(e, "Oven", _all_labels("Oven"))["knob"]["count"] == 2
 
 
+def test_a_joint_type_the_category_lacks_is_said_not_held(caplog):
+    """"two sliding doors": the data's cabinet doors all turn on hinges; the doors are held
+    to their count, and the user is told the sliding is not."""
+    e = parse_prompt("a low cabinet with two sliding doors")
+    with caplog.at_level("WARNING", logger="model.pipeline.prompt_structure"):
+        s = structure_for(e, "StorageFurniture", _all_labels("StorageFurniture"))
+    assert s["door"] == {"count": 2}
+    assert "door parts move only as revolute" in caplog.text and "prismatic" in caplog.text
+    caplog.clear()
+    with caplog.at_level("WARNING", logger="model.pipeline.prompt_structure"):
+        structure_for(parse_prompt("a cabinet with two hinged doors"), "StorageFurniture",
+                      _all_labels("StorageFurniture"))
+    assert caplog.text == ""
+
+
 def test_a_washers_loading_side_implies_its_door_or_lid():
     e = parse_prompt("a front-loading washing machine with a dial")
     assert e.counts == {"dial": 1, "door": 1} and e.joint_types["door"] == ["revolute"]

@@ -457,6 +457,41 @@ def test_oven_door_fills_its_front_and_stays_clear_of_the_controls():
     assert part_position(obj, 1)[0] == "middle"
 
 
+def _stacked_doors() -> ArticulatedObject:
+    """"a tall cabinet with an upper door and a lower door" as decoded (seed 2): two doors
+    one above the other over the top 79 % of a 1.58 m carcass, a 33 cm open band below."""
+    axis = (0.0, 0.0, 1.0)
+    return ArticulatedObject(category="StorageFurniture", name="stacked", parts=[
+        _part("body_0", "body", -1, (0.49, 1.0, 1.58), (0, 0, 0.79)),
+        _part("door_0", "door", 0, (0.02, 0.96, 0.6), (0.235, 0.0, 1.25),
+              Joint(JointType.REVOLUTE, (0.245, -0.48, 1.25), axis, r_range=(0, 1.6))),
+        _part("door_1", "door", 0, (0.02, 0.96, 0.6), (0.235, 0.0, 0.64),
+              Joint(JointType.REVOLUTE, (0.245, -0.48, 0.64), axis, r_range=(0, 1.6))),
+    ])
+
+
+def test_fronts_stated_down_to_the_bottom_fill_the_bottom_band():
+    """A storage front may leave an open band under its fronts (the data's open cells);
+    one whose lower fronts the prompt names ("a lower door", "drawers at the bottom", "two
+    upper and two lower doors") fills the face to the carcass's frame, so the lower door
+    is in the bottom third and no open shelf is left under it."""
+    from model.data.spatial import part_position
+    from model.refine.siblings import FILL_FRAME
+    frame = FILL_FRAME["StorageFurniture"][0]
+    for stated in ({"door": {"vpos": ["bottom", "top"]}},
+                   {"door": {"layout": "grid", "rows": 2, "columns": 1}}):
+        obj = _stacked_doors()
+        refine_layout(obj, stated=stated)
+        low = obj.parts[2]
+        assert low.bbox_center[2] - low.bbox_size[2] / 2 == pytest.approx(frame)
+        assert part_position(obj, 2)[1] == "bottom" and part_position(obj, 1)[1] == "top"
+        assert not _boxes_overlap(obj.parts[1], low)
+    for stated in (None, {"door": {"hpos": ["left", "right"]}}):   # nothing said of rows
+        obj = _stacked_doors()
+        refine_layout(obj, stated=stated)
+        assert obj.parts[2].bbox_center[2] - obj.parts[2].bbox_size[2] / 2 > 0.3
+
+
 def test_part_resolution_follows_metric_size():
     from model.pipeline.api import GenerationConfig
     from model.pipeline.generator import part_resolution

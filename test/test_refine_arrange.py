@@ -472,3 +472,54 @@ def test_a_left_door_and_a_right_door_are_side_by_side():
                       _door(1, (0.02, 0.47, 1.7), (0.26, 0.25, 0.9), (0.27, 0.49, 0.9))])
     _layout_same(upper, "a cabinet with an upper door and a lower door")
     assert sorted(part_position(upper, i)[1] for i in (1, 2)) == ["bottom", "top"]
+
+
+def test_drawers_stated_beside_a_door_are_one_column():
+    """"an office cabinet with a door on the left and three drawers on the right" (seed 0):
+    the network's drawers were one over two side by side, one of them 13 cm wide and 50 cm
+    tall, already right of the door. Drawers stated on one side of the others with no
+    arrangement of their own are one column of equal drawers in their band; a stated
+    arrangement ("two drawers side by side on the right") is kept."""
+    def office(drawers):
+        return ArticulatedObject(category="StorageFurniture", name="o", parts=[
+            _part("body_0", "body", -1, (0.51, 0.93, 1.07), (0, 0, 0.54)),
+            _door(0, (0.02, 0.36, 0.94), (0.25, -0.26, 0.58), (0.26, -0.44, 0.58)), *drawers])
+    messy = [_drawer(0, (0.05, 0.2, 0.84), (0.41, 0.48, 0.43)),
+             _drawer(1, (0.05, 0.24, 0.36), (0.41, 0.40, 0.49)),
+             _drawer(2, (0.05, -0.02, 0.37), (0.41, 0.13, 0.5))]
+    obj = office(messy)
+    _layout_same(obj, "an office cabinet with a door on the left and three drawers on the right")
+    drawers = [2, 3, 4]
+    assert _grid_of(obj, drawers) == ("column", 3, 1)
+    assert all(part_position(obj, i)[0] == "right" for i in drawers)
+    widths = [obj.parts[i].bbox_size[1] for i in drawers]
+    assert max(widths) - min(widths) < 1e-6 and min(widths) > 0.3
+    obj = office([_drawer(0, (0.05, 0.1, 0.3), (0.41, 0.2, 0.3)),
+                  _drawer(1, (0.05, 0.35, 0.3), (0.41, 0.2, 0.3))])
+    _layout_same(obj, "a cabinet with a door on the left and two drawers side by side on the "
+                      "right")
+    assert _grid_of(obj, [2, 3])[0] == "row"
+
+
+def test_doors_banded_below_drawers_stand_side_by_side():
+    """"two doors at the bottom and three drawers side by side above them, on a low
+    sideboard": the network stacked the two doors, each the full width and 15 cm tall, under
+    the drawers (seeds 0-2). Doors banded above or below another group with no arrangement
+    of their own are one row in their band; a stated column is kept."""
+    def sideboard():
+        drawers = [_drawer(n, (0.08, y, 0.46), (0.37, 0.41, 0.27))
+                   for n, y in enumerate((-0.42, 0.0, 0.41))]
+        return ArticulatedObject(category="StorageFurniture", name="s", parts=[
+            _part("body_0", "body", -1, (0.52, 1.29, 0.62), (0, 0, 0.31)),
+            _door(0, (0.02, 1.24, 0.15), (0.25, 0, 0.25), (0.26, -0.62, 0.25)),
+            _door(1, (0.02, 1.24, 0.15), (0.25, 0, 0.10), (0.26, -0.62, 0.10)), *drawers])
+    obj = sideboard()
+    _layout_same(obj, "two doors at the bottom and three drawers side by side above them, "
+                      "on a low sideboard")
+    assert _grid_of(obj, [1, 2]) == ("row", 1, 2)
+    assert all(part_position(obj, i)[1] == "bottom" for i in (1, 2))
+    assert _grid_of(obj, [3, 4, 5]) == ("row", 1, 3)
+    obj = sideboard()
+    _layout_same(obj, "two doors stacked at the bottom and three drawers side by side above "
+                      "them")
+    assert _grid_of(obj, [1, 2])[0] == "column"

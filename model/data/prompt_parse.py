@@ -355,7 +355,7 @@ def _combine(ms: list[_Mention], base: dict[str, int]) -> tuple[dict, dict]:
                     lower[m.label] = max(lower.get(m.label, 0), n)
                     continue
             exact[m.label] = exact.get(m.label, 0) + n
-            if m.exact >= 2:
+            if m.exact >= 2 and not m.side:     # "two upper doors and one lower door": 3
                 plural_seen[key] = plural_seen.get(key, 0) + m.exact
         elif m.lower is not None:
             n = m.lower

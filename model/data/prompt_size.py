@@ -201,6 +201,27 @@ def _into_quarter(value: float, spread: tuple[float, float, float, float], sign:
     return value
 
 
+# An open dimension this many times beyond the data's spread of its category (SIZE_SPREAD) is
+# not a size the category comes in: "a thermos" (a word the data lacks) decoded as a 46 cm
+# wide bottle, "a small safe with a keypad" as a 2.5 cm tall one. Gun safes 1.06 m tall
+# (the data's highest: 0.90 m) and 2.05 m wardrobes (1.90 m) are real, and stay.
+GROSS = 1.5
+WIDTH_LABELS = ("drawer", "door", "tray", "lid")   # the parts whose rows need the body's width
+
+
+def _within_data(category: str, have: dict[str, float], stated: dict) -> dict[str, float]:
+    """``have`` (the decoded body's depth, width, height in m) when every dimension ``stated``
+    leaves open is within ``GROSS`` of the data's spread; otherwise the decoded size says
+    nothing the category's data would (its proportions neither: the thermos was wider than
+    tall) and each open dimension takes the middle of the data's (between its quartiles)."""
+    spread = SIZE_SPREAD.get(category)
+    open_dims = [d for d in AXIS if d not in stated]
+    if spread is None or all(spread[d][0] / GROSS <= have[d] <= spread[d][3] * GROSS
+                             for d in open_dims):
+        return dict(have)
+    return {**have, **{d: (spread[d][1] + spread[d][2]) / 2 for d in open_dims}}
+
+
 def _sized(category: str, words: dict[str, int], stated: dict, have: dict[str, float],
            ranges: dict | None) -> dict[str, float]:
     """``have`` (the body's depth, width, height in m) with ``words`` (read_size_words) given
@@ -294,8 +315,9 @@ def with_usual_size(text: str, category: str | None, stated: dict | None,
     if decoded is None:
         return out
     have = {dim: float(decoded[ax]) for dim, ax in AXIS.items()}
-    want, ranges = dict(have), None
-    arranged = any(f.keys() & ARRANGEMENT_KEYS for f in (spatial or {}).values())
+    want, ranges = _within_data(category, have, out), None
+    arranged = any(f.keys() & ARRANGEMENT_KEYS for lab, f in (spatial or {}).items()
+                   if lab in WIDTH_LABELS)
     for names, name_ranges in NAMED_RANGES.get(category or "", []):
         if not _named(text, names):
             continue

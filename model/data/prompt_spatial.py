@@ -46,6 +46,31 @@ class _Fact:
     panel: bool = False    # said of a control panel: about the controls named with it
 
 
+def _tiers(m: re.Match) -> str:
+    """"N upper [parts] and M lower parts": one row of N above one of M. As many in each
+    tier is two rows of N; otherwise the parts are said in both (the part named after "lower"
+    once, "two upper and one lower door", counts for both). Unchanged where the upper tier
+    names another part ("two upper doors and two lower drawers")."""
+    n1, said, n2, w1, w2 = m.group(1), m.group(2).strip(), m.group(3), m.group(4), m.group(5)
+    if w2 and _is_part(w2):
+        parts, rest = f"{w1} {w2}", ""
+    elif _is_part(w1):
+        parts, rest = w1, f" {w2}" if w2 else ""
+    else:
+        return m.group(0)
+    if said and said.split()[-1].rstrip("s") != parts.split()[-1].rstrip("s"):
+        return m.group(0)
+    if _num(n1) == _num(n2) > 1:
+        return f"two rows of {n1} {parts}{rest}"
+    upper = said or (parts if parts.endswith("s") or _num(n1) == 1 else parts + "s")
+    return f"{n1} upper {upper} and {n2} lower {parts}{rest}"
+
+
+def _is_part(word: str) -> bool:
+    toks = _tokenize(word)
+    return len(toks) == 1 and toks[0].kind == "PART"
+
+
 def _rewrite_counts(sentence: str) -> tuple[str, list[_Fact]]:
     """Rewrite grid wordings that carry a count ("two rows of three drawers" -> "6 drawers",
     "a 3 x 3 keypad" -> "9 keypad buttons") and return the arrangement facts they state."""
@@ -61,6 +86,11 @@ def _rewrite_counts(sentence: str) -> tuple[str, list[_Fact]]:
                       lambda m: (f"two rows of {m.group(1)}{m.group(2)}"
                                  if _num(m.group(1)) == _num(m.group(3)) else m.group(0)),
                       sentence)
+
+    # "two upper doors and two lower doors" / "two upper and two lower doors" is "two rows of
+    # two doors"; "three upper and two lower doors" is "three upper doors and two lower doors"
+    sentence = re.sub(rf"\b{_N} (?:upper|top) ((?:[a-z-]+ ){{0,2}}?)(?:and|plus|over|above) "
+                      rf"{_N} (?:lower|bottom) ([a-z-]+)(?: ([a-z]+))?\b", _tiers, sentence)
 
     # "six pairs of drawers side by side": six rows of two
     sentence = re.sub(rf"\b{_N} pairs of ((?:[a-z]+ )?[a-z]+) side by side\b",
@@ -161,7 +191,7 @@ _SPATIAL_PATTERNS: list[tuple[str, str, str]] = [
     ("rows+columns", rf"\b{_N} (rows|columns),? (?:and |by |x |× )?{_N} (?:rows|columns)\b", "post"),
     ("rows", rf"\bin {_N} (?:horizontal )?rows\b", "post"),
     ("columns", rf"\bin {_N} (?:vertical )?columns\b", "post"),
-    ("relation", r"\b(above|on top of|below|under|underneath|beneath)\b(?: (?:the|a|an|its|their|both))?", "post"),
+    ("relation", r"\b(above|on top of|below|under|underneath|beneath)\b(?!-)(?: (?:the|a|an|its|their|both))?", "post"),
     ("sideof", r"\b(?:to|on|at) the (left|right)(?:[- ]hand)?(?: side)? of\b(?: (?:the|a|an|its|their|both))?", "post"),
     ("hpos", r"\b(?:the |its )?(left|right)[- ](?:hand )?half (?:is|has|holds|contains|with|:)", "pre"),
     ("hpos", r"\b(?:on|at|to|in) the (left|right)(?:[- ]hand)?(?: side| end| half)?\b", "post"),

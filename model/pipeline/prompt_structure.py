@@ -86,6 +86,10 @@ def structure_for(expected, category: str, labels: Iterable[str],
             next((k for k, v in rename.items() if v == lab), ""), [])
         if n > 0 and len(joints) == 1 and joints[0] in grammar[lab][1]:
             req["joint"] = joints[0]
+        elif n > 0 and joints and not set(joints) & set(grammar[lab][1]):
+            log.warning("%s %s: this model's %s parts move only as %s (its training data's); "
+                        "the prompt's %s is not held", category, lab, lab,
+                        "/".join(grammar[lab][1]), "/".join(joints))
         sides = _hinge_sides(expected, lab, n, HINGE_SIDES) if lab in HINGED_LABELS else None
         if sides and req.get("joint", "revolute") == "revolute":
             req["hinge"] = sides

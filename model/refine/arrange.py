@@ -66,6 +66,11 @@ def arrange_stated(obj: ArticulatedObject, spatial: Optional[dict]) -> list[str]
             if _bands(obj, low, high, ax, share, stack):
                 a, b = obj.parts[high[0]].label, obj.parts[low[0]].label
                 done.append(f"{a} above {b}" if ax == V else f"{b} left of {a}")
+            if ax == H and _column_beside(obj, label, facts):
+                done.append(f"{label}: a column")
+            for g in (low, high) if ax == V else ():
+                if _doors_in_a_row(obj, g, spatial):
+                    done.append("door: a row")
         for key, ax in (("hpos", H), ("vpos", V)):
             want = facts.get(key) or []
             if ax not in banded and len(want) == 1 and _to_place(obj, label, ax, want[0]):
@@ -121,6 +126,33 @@ def _to_place(obj: ArticulatedObject, label: str, ax: int, where: str) -> bool:
         centre[ax], box[ax] = c + d, s
         _place(obj, i, centre, _round(obj.parts[i].label, box))
     return True
+
+
+def _column_beside(obj: ArticulatedObject, label: str, facts: dict) -> bool:
+    """Drawers stated on one side of the others ("a door on the left and three drawers on
+    the right") with no arrangement of their own are one column in their band, as a desk's
+    or kitchen unit's drawer pedestal is: the network's own layout mapped into the band had
+    a drawer over two side by side, one of them 13 cm wide and 50 cm tall."""
+    group = _front_group(obj, label, every=False)
+    if label != "drawer" or group is None or len(group) < 2 \
+            or any(facts.get(k) for k in ARRANGEMENT_KEYS):
+        return False
+    return _lay_out(obj, group, [1] * len(group))
+
+
+def _doors_in_a_row(obj: ArticulatedObject, group: list[int], spatial: dict) -> bool:
+    """Doors banded above or below another group ("two doors at the bottom and three
+    drawers side by side above them", "a wardrobe with two doors and a drawer at the
+    bottom") with no arrangement of their own stand side by side in their band, as a
+    kitchen unit's or wardrobe's do: the network stacked them, two full-width doors 15 cm
+    tall under the drawers (free-form set, seeds 0-2)."""
+    facts = spatial.get("door") or {}
+    if len(group) < 2 or any(obj.parts[i].label != "door" for i in group) \
+            or any(facts.get(k) for k in ARRANGEMENT_KEYS):
+        return False
+    if len({round(float(obj.parts[i].bbox_center[V]), 3) for i in group}) == 1:
+        return False                                        # a row already
+    return _lay_out(obj, group, [len(group)])
 
 
 def _stated_bands(obj: ArticulatedObject, label: str, spatial: dict) -> list[tuple]:

@@ -499,6 +499,21 @@ KEEP_SIDE = 0.25   # half-faces off the middle a front stated on one side keeps 
 FILL_FRAME = {"StorageFurniture": (0.023, False), "Oven": (0.03, True), "Safe": (0.05, True)}
 
 
+def _stated_down_to_bottom(stated: dict, labels: set) -> bool:
+    """Whether the prompt lays out the fronts of ``labels`` from top to bottom: a front at the
+    bottom or lower than another ("a lower door", "drawers at the bottom", "a drawer above
+    two doors"), or in rows ("two upper and two lower doors", "in a column"). The fill then
+    grows the lowest fronts down to the frame: a storage front may leave an open band below
+    its fronts (as 14 % of the data's do by a tenth of the height or more), but not one whose
+    lower fronts the user named."""
+    for label in labels:
+        facts = stated.get(label) or {}
+        if "bottom" in (facts.get("vpos") or []) or facts.get("above") or facts.get("below") \
+                or facts.get("layout") in ("column", "grid") or (facts.get("rows") or 0) > 1:
+            return True
+    return False
+
+
 def _kept_side(stated: dict, label: str, d: int) -> Optional[float]:
     """-1 / +1 when the prompt puts ``label`` on one side along axis ``d`` (y: "on the left" /
     "on the right"; z: "at the bottom" / "on top"), else None."""
@@ -529,7 +544,8 @@ def _fill(obj: ArticulatedObject, parent: int, members: list[int], k: int,
     """The doors and drawers on one face grow to tile it: a decoded front often leaves
     drawers as small boxes in a wide empty face, or an oven's door in a corner of its
     front, where the data's fronts cover 93 % (storage, median) of the rectangle they span,
-    and that rectangle reaches to the category's frame (``FILL_FRAME``) of the carcass.
+    and that rectangle reaches to the category's frame (``FILL_FRAME``) of the carcass
+    (a storage front's bottom only where the prompt lays it out, ``_stated_down_to_bottom``).
     Vertical extents first, then horizontal (past the small parts above or below it at its
     new height); a part grows towards a front wholly beyond it only to the middle of the gap
     between them (``GAP`` apart), and towards a knob, dial, button or handle on its face
@@ -542,6 +558,7 @@ def _fill(obj: ArticulatedObject, parent: int, members: list[int], k: int,
     -> the number of parts grown."""
     frame, bottom = FILL_FRAME[obj.category]
     fronts = [i for i in members if obj.parts[i].label in FRONTS]
+    bottom = bottom or _stated_down_to_bottom(stated or {}, {obj.parts[i].label for i in fronts})
     fixed = [i for i in members if obj.parts[i].label in SMALL]
     deep = [i for i in members if obj.parts[i].label not in FRONTS + SMALL]   # trays
     if not fronts:
