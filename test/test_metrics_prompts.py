@@ -127,6 +127,9 @@ def test_parse_free_form(prompt, category, counts, lower, joints):
      "door.vpos=bottom/top"),
     ("a cabinet with two upper doors and two lower drawers", "StorageFurniture door=2 "
      "drawer=2 door.vpos=top drawer.vpos=bottom"),
+    # double (French) doors are a pair side by side
+    ("a gun safe with double doors", "Safe door=2 door.layout=row"),
+    ("a double-door cabinet", "StorageFurniture door=2 door.layout=row"),
     # a name with "under-" places nothing
     ("an under-sink cabinet with two doors", "StorageFurniture door=2"),
     # the middle: "in the middle (of the door)", "top center"

@@ -492,6 +492,29 @@ def test_fronts_stated_down_to_the_bottom_fill_the_bottom_band():
         assert obj.parts[2].bbox_center[2] - obj.parts[2].bbox_size[2] / 2 > 0.3
 
 
+def test_double_doors_meeting_edges_leave_room_for_their_swing():
+    """"a safe with two doors side by side" (seed 1): 4.7 cm thick, 18 cm wide doors hinged
+    on their outer edges, 1 mm apart, collided at a tenth of their swing (each inner back
+    corner first swings up to sqrt(w^2 + t^2) - w = 6 mm towards the other). Each door gives
+    up half the missing room at its meeting edge; its hinge edge stays."""
+    from model.refine.layout import GAP
+    obj = ArticulatedObject(category="Safe", name="double", parts=[
+        _part("body_0", "body", -1, (0.47, 0.47, 0.57), (0, 0, 0.285)),
+        _part("door_0", "door", 0, (0.047, 0.183, 0.47), (0.213, -0.0925, 0.28),
+              Joint(JointType.REVOLUTE, (0.236, -0.184, 0.28), (0, 0, -1), r_range=(0, 1.6))),
+        _part("door_1", "door", 0, (0.047, 0.183, 0.47), (0.213, 0.0925, 0.28),
+              Joint(JointType.REVOLUTE, (0.236, 0.184, 0.28), (0, 0, 1), r_range=(0, 1.6)))])
+    refine_layout(obj)
+    a, b = obj.parts[1], obj.parts[2]
+    gap = (b.bbox_center[1] - b.bbox_size[1] / 2) - (a.bbox_center[1] + a.bbox_size[1] / 2)
+    sweep = sum(np.hypot(d.bbox_size[1], d.bbox_size[0]) - d.bbox_size[1] for d in (a, b))
+    assert gap >= sweep + GAP - 1e-6 and gap < 0.02
+    assert a.joint.origin[1] == pytest.approx(a.bbox_center[1] - a.bbox_size[1] / 2)
+    assert b.joint.origin[1] == pytest.approx(b.bbox_center[1] + b.bbox_size[1] / 2)
+    rep = audit_object(obj, config=GEOMETRY_ONLY)
+    assert not [f for f in rep.failures if "overlap" in f], rep.failures
+
+
 def test_part_resolution_follows_metric_size():
     from model.pipeline.api import GenerationConfig
     from model.pipeline.generator import part_resolution

@@ -523,3 +523,18 @@ def test_doors_banded_below_drawers_stand_side_by_side():
     _layout_same(obj, "two doors stacked at the bottom and three drawers side by side above "
                       "them")
     assert _grid_of(obj, [1, 2])[0] == "column"
+
+
+def test_fronts_stated_at_the_bottom_keep_to_the_bottom_band():
+    """"a bookcase with two doors at the bottom" (seed 0): the network's two doors covered 79 %
+    of the front's height; moved down and tiled, they ended in its middle third, grown over
+    the shelves above. Fronts stated at the top or bottom take that band of the face (the
+    one they would take above or below another group) and grow only towards their edge."""
+    obj = ArticulatedObject(category="StorageFurniture", name="b", parts=[
+        _part("body_0", "body", -1, (0.44, 0.92, 1.12), (0, 0, 0.56)),
+        _door(0, (0.02, 0.86, 0.73), (0.21, 0.0, 0.73), (0.22, -0.43, 0.73)),
+        _door(1, (0.02, 0.86, 0.50), (0.21, 0.0, 0.47), (0.22, -0.43, 0.47))])
+    _layout_same(obj, "a bookcase with two doors at the bottom")
+    for i in (1, 2):
+        top = obj.parts[i].bbox_center[2] + obj.parts[i].bbox_size[2] / 2
+        assert part_position(obj, i)[1] == "bottom" and top < 0.5, (i, top)

@@ -190,3 +190,31 @@ def test_size_words_give_the_body_its_size_and_seeds_still_vary_it(gen):
         size = np.prod(gen.layout(trees[0]).parts[0].bbox_size) ** (1 / 3)
         assert size <= SIZE_SPREAD["Oven"]["size"][1] + 1e-3, (seed, size)
     assert len(set(heights)) >= 3, heights
+
+
+def test_a_hutch_has_two_rows_of_doors_and_a_thermos_a_bottles_size(gen):
+    """"a hutch with two upper doors and two lower doors" came out with three doors stacked
+    and the fourth on the body's top or bottom face, over an open band (seeds 0-3); "a
+    thermos with a screw-on cap" as a bottle 35-57 cm wide (seeds 0-2), "a small safe with a
+    digital keypad" 2.5 cm tall (seed 3)."""
+    from model.data.prompt_size import SIZE_SPREAD
+    from model.data.spatial import arrangement, body_box, part_position
+    for seed in range(4):
+        trees, *_ = gen.decode_trees("a hutch with two upper doors and two lower doors",
+                                     seed=seed)
+        obj = gen.layout(trees[0])
+        doors = [i for i, p in enumerate(obj.parts) if p.label == "door"]
+        got = arrangement(obj, doors)
+        assert (got["layout"], got["rows"], got["columns"]) == ("grid", 2, 2), (seed, got)
+        low = min(obj.parts[i].bbox_center[2] - obj.parts[i].bbox_size[2] / 2 for i in doors)
+        assert low - (body_box(obj)[0][2] - body_box(obj)[1][2] / 2) < 0.05, seed
+        assert sorted(part_position(obj, i)[1] for i in doors) == \
+            ["bottom", "bottom", "top", "top"], seed
+    for seed in range(3):
+        for text, cat in (("a thermos with a screw-on cap", "Bottle"),
+                          ("a small safe with a digital keypad", "Safe")):
+            trees, *_ = gen.decode_trees(text, seed=seed + 1)
+            size = gen.layout(trees[0]).parts[0].bbox_size
+            for ax, dim in enumerate(("depth", "width", "height")):
+                lo, *_, hi = SIZE_SPREAD[cat][dim]
+                assert lo - 1e-3 <= size[ax] <= hi + 1e-3, (text, seed, size)

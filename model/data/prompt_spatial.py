@@ -178,6 +178,7 @@ _SPATIAL_PATTERNS: list[tuple[str, str, str]] = [
                    r"|next to (?:eachother|oneanother)|beside (?:eachother|oneanother)"
                    r"|in a horizontal line|one (?:beside|next to|by) (?:the other|another))\b", "post"),
     ("layout=row", r"\b(?:a |one |single )?(?:horizontal |neat |straight )?row of\b", "pre"),
+    ("layout=row", r"\b(?:double|french)(?=[- ]doors?\b)", "pre"),   # a pair side by side
     ("layout=grid", r"\bin a grid\b", "post"),
     ("down-across", rf"\b{_N} (?:tall|high|down),? (?:and |by |x |× )?{_N} (?:wide|across)\b", "post"),
     ("across", rf"\b{_N} (?:across|wide)(?:,? (?:and |by |in |x |× )?{_N} (?:down|high|deep|tall))?", "post"),

@@ -671,4 +671,47 @@ def refine_layout(obj: ArticulatedObject, config: Optional[LayoutConfig] = None,
             else:
                 continue
             report["joints"] += 1
+        report["meeting_edges"] = _meeting_edges(obj)
     return report
+
+
+def _meeting_edges(obj: ArticulatedObject) -> int:
+    """A pair of doors side by side, hinged on their outer edges (double doors): opening
+    together, each one's inner back corner first swings towards the other, by
+    sqrt(w^2 + t^2) - w at most (w its width, t its thickness). Where the gap between the
+    meeting edges is less than the two together plus ``GAP``, each door gives up half the
+    rest at its meeting edge (its hinge edge stays): a safe's 4.7 cm thick, 18 cm wide double
+    doors 1 mm apart collided at a tenth of their swing. -> the number of doors narrowed."""
+    doors = [i for i in obj.movable_parts() if obj.parts[i].label == "door"
+             and obj.parts[i].joint.type == JointType.REVOLUTE]
+    narrowed = 0
+    for i in doors:
+        for j in doors:
+            p, q = obj.parts[i], obj.parts[j]
+            face = face_of(obj, i)
+            if i == j or p.parent != q.parent or face is None or face != face_of(obj, j):
+                continue
+            k, a = face[0], _principal(p.joint.axis)[0]
+            if a == k or a != _principal(q.joint.axis)[0]:
+                continue
+            u = [d for d in range(3) if d not in (a, k)][0]
+            (plo, phi), (qlo, qhi) = _lohi(p), _lohi(q)
+            gap = float(qlo[u] - phi[u])             # p before q along u
+            over = min(phi[a], qhi[a]) - max(plo[a], qlo[a])
+            if not -GAP < gap < 0.05 or over < 0.5 * min(p.bbox_size[a], q.bbox_size[a]) \
+                    or abs(p.joint.origin[u] - plo[u]) > 1e-6 \
+                    or abs(q.joint.origin[u] - qhi[u]) > 1e-6:   # hinged on the outer edges
+                continue
+            short = 0.0
+            for _ in range(4):              # narrower doors sweep a little further
+                sweep = sum(float(np.hypot(d.bbox_size[u] - short, d.bbox_size[k])
+                                  - (d.bbox_size[u] - short)) for d in (p, q))
+                short = max(0.0, (sweep + GAP - gap) / 2)
+            if short <= 0 or short > 0.1 * min(p.bbox_size[u], q.bbox_size[u]):
+                continue
+            phi[u] -= short
+            qlo[u] += short
+            _set(p, plo, phi)
+            _set(q, qlo, qhi)
+            narrowed += 2
+    return narrowed

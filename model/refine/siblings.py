@@ -553,7 +553,7 @@ def _fill(obj: ArticulatedObject, parent: int, members: list[int], k: int,
     so, and every small part beside it; nothing shrinks. A tray it now covers goes in behind it
     (``_recess``). A front the prompt puts on one side
     (``stated``: "a door on the left") keeps its centre there, at least ``KEEP_SIDE`` of the
-    half-face off the middle. A drawer's children move with its centre; a door's stay where
+    half-face off the middle; one it puts at the top or bottom grows only towards that edge. A drawer's children move with its centre; a door's stay where
     they are (on the door, which only grew: a dial stated in the middle stays there).
     -> the number of parts grown."""
     frame, bottom = FILL_FRAME[obj.category]
@@ -593,7 +593,12 @@ def _fill(obj: ArticulatedObject, parent: int, members: list[int], k: int,
             lo0, hi0 = lo[d], hi[d]
             lo[d], hi[d] = min(lo[d], down), max(hi[d], up)
             side = _kept_side(stated or {}, obj.parts[i].label, d)
-            if side is not None:     # the centre stays off the middle on its stated side
+            if side is not None and d == 2:   # "at the bottom" / "on top": it grows to
+                if side < 0:                    # that edge only, the rest of the face left
+                    hi[d] = hi0                 # open ("a bookcase with two doors at the
+                else:                           # bottom" had its doors grown to 80 % of
+                    lo[d] = lo0                 # its height)
+            elif side is not None:   # the centre stays off the middle on its stated side
                 mid, half = (P0[d] + P1[d]) / 2, (P1[d] - P0[d]) / 2
                 off = min(side * (start[i][d] - mid) / half, KEEP_SIDE)
                 if off > 0:
