@@ -56,6 +56,9 @@ def arrange_stated(obj: ArticulatedObject, spatial: Optional[dict]) -> list[str]
         if group is not None and _lay_out(obj, group, grid):
             grids.append(group)
             done.append(f"{label}: {len(grid)} x {max(grid)}")
+    for outer, inner in _flanks(spatial):
+        if _flanked(obj, outer, inner, spatial):
+            done.append(f"{outer} either side of {inner}")
     laid = {lab for lab, f in (spatial or {}).items()          # a stated row stays a row
             if any(f.get(k) for k in ARRANGEMENT_KEYS)}
     for label, facts in (spatial or {}).items():
@@ -132,6 +135,45 @@ def _to_place(obj: ArticulatedObject, label: str, ax: int, where: str) -> bool:
         centre, box = obj.parts[i].bbox_center.copy(), obj.parts[i].bbox_size.copy()
         centre[ax], box[ax] = c + d, s
         _place(obj, i, centre, _round(obj.parts[i].label, box))
+    return True
+
+
+def _flanks(spatial: Optional[dict]) -> list[tuple[str, str]]:
+    """(outer, inner) label pairs the prompt puts one on each side of the other: "a door on
+    the left and a door on the right and two drawers in the middle"."""
+    spatial = spatial or {}
+    return [(a, b) for a, fa in spatial.items() for b, fb in spatial.items()
+            if a != b and a in BANDED and b in BANDED
+            and set(fa.get("hpos") or []) == {"left", "right"}
+            and (fb.get("hpos") or []) == ["middle"]]
+
+
+def _flanked(obj: ArticulatedObject, outer: str, inner: str, spatial: dict) -> bool:
+    """Two fronts of ``outer`` either side of the fronts of ``inner`` on one face: three equal
+    columns across the face (within its frame) over the height they all cover, each outer
+    front a side column, the inner group the middle one (one stack, unless the prompt
+    arranges it). The network had put the two doors of "a door on the left and a door on
+    the right and two drawers in the middle" under the drawers as 22 x 6 cm slivers
+    (seed 2)."""
+    sides, mid = _front_group(obj, outer), _front_group(obj, inner)
+    if sides is None or mid is None or len(sides) != 2 or not _same_face(obj, sides, mid):
+        return False
+    lo, hi = _union([obj.parts[i] for i in sides + mid])
+    plo, phi = _cspan(obj, [obj.parts[sides[0]].parent], H)
+    frame = frame_of(phi - plo)
+    w = (phi - plo - 2 * frame - 2 * GAP) / 3
+    left = plo + frame
+    order = sorted(sides, key=lambda i: obj.parts[i].bbox_center[H])
+    for g in ([order[0]], mid, [order[1]]):
+        for i in g:
+            centre, size = obj.parts[i].bbox_center.copy(), obj.parts[i].bbox_size.copy()
+            centre[H], size[H] = left + w / 2, w
+            centre[V], size[V] = (lo[V] + hi[V]) / 2, hi[V] - lo[V]
+            _place(obj, i, centre, size)
+        left += w + GAP
+    facts = spatial.get(inner) or {}
+    if len(mid) > 1 and not any(facts.get(k) for k in ARRANGEMENT_KEYS):
+        _lay_out(obj, mid, [1] * len(mid))
     return True
 
 
