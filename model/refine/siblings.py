@@ -461,9 +461,15 @@ def _separate(first_group: list, second_group: list, k: int) -> bool:
     return True
 
 
-def _separate_all(obj: ArticulatedObject, members: list[int], k: int) -> int:
+def _separate_all(obj: ArticulatedObject, members: list[int], k: int,
+                  stated: Optional[dict] = None) -> int:
     """Repeated parts among themselves first (a stack splits into rows), then each label's
-    group against each other's, then any pair left."""
+    group against each other's, then any pair left. Two groups the prompt puts one either
+    side of the other (``stated``, ``arrange._flanks``: doors left and right of a drawer
+    stack) are cut apart only where two of their members overlap: their unions do."""
+    from .arrange import _flanks
+
+    flanked = {frozenset(pair) for pair in _flanks(stated)}
     by_label: dict[str, list] = {}
     for c in members:
         by_label.setdefault(obj.parts[c].label, []).append(obj.parts[c])
@@ -477,9 +483,8 @@ def _separate_all(obj: ArticulatedObject, members: list[int], k: int) -> int:
                     hit += _separate([a], [b], k)
         for a_i, a in enumerate(groups):
             for b in groups[a_i + 1:]:
-                # not groups whose members interleave without overlapping: the doors either
-                # side of a drawer stack cover it only as a whole
-                if any(_overlap(p, q, GAP / 4) for p in a for q in b):
+                if frozenset((a[0].label, b[0].label)) not in flanked \
+                        or any(_overlap(p, q, GAP / 4) for p in a for q in b):
                     hit += _separate(a, b, k)
         parts = [obj.parts[c] for c in members]
         for a_i, a in enumerate(parts):
@@ -771,7 +776,7 @@ def siblings(obj: ArticulatedObject, cfg: LayoutConfig, report: dict,
                             _space_small(obj, same, k, bool(facts & ARRANGED))
                         report["aligned_groups"] += 1
             if cfg.separate:
-                report["separated"] += _separate_all(obj, members, k)
+                report["separated"] += _separate_all(obj, members, k, stated)
                 report["rounded"] = report.get("rounded", 0) + _round_controls(obj, members, k,
                                                                                s)
                 report["cleared"] = report.get("cleared", 0) + _clear_panels(obj, members, k)
