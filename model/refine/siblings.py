@@ -512,7 +512,7 @@ def _stated_down_to_bottom(stated: dict, labels: set) -> bool:
     bottom or lower than another ("a lower door", "drawers at the bottom", "a drawer above
     two doors"), or in rows ("two upper and two lower doors", "in a column"). The fill then
     grows the lowest fronts down to the frame: a storage front may leave an open band below
-    its fronts (as 14 % of the data's do by a tenth of the height or more), but not one whose
+    its fronts (as 15 % of the data's do by a tenth of the height or more), but not one whose
     lower fronts the user named."""
     for label in labels:
         facts = stated.get(label) or {}
@@ -561,8 +561,9 @@ def _fill(obj: ArticulatedObject, parent: int, members: list[int], k: int,
     so, and every small part beside it; nothing shrinks. A tray it now covers goes in behind it
     (``_recess``). A front the prompt puts on one side
     (``stated``: "a door on the left") keeps its centre there, at least ``KEEP_SIDE`` of the
-    half-face off the middle; one it puts at the top or bottom grows only towards that edge. A drawer's children move with its centre; a door's stay where
-    they are (on the door, which only grew: a dial stated in the middle stays there).
+    half-face off the middle; one it puts at the top or bottom grows only towards that edge.
+    A drawer's children move with its centre; a door's stay where they are (on the door,
+    which only grew: a dial stated in the middle stays there).
     -> the number of parts grown."""
     frame, bottom = FILL_FRAME[obj.category]
     fronts = [i for i in members if obj.parts[i].label in FRONTS]
