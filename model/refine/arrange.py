@@ -60,7 +60,7 @@ def arrange_stated(obj: ArticulatedObject, spatial: Optional[dict]) -> list[str]
         if _flanked(obj, outer, inner, spatial):
             done.append(f"{outer} either side of {inner}")
     laid = {lab for lab, f in (spatial or {}).items()          # a stated row stays a row
-            if any(f.get(k) for k in ARRANGEMENT_KEYS)}
+            if _arranged(f)}
     for label, facts in (spatial or {}).items():
         banded = set()
         for low, high, ax, share in _stated_bands(obj, label, spatial):
@@ -81,6 +81,12 @@ def arrange_stated(obj: ArticulatedObject, spatial: Optional[dict]) -> list[str]
     for group in grids:
         _clear_grid(obj, group, keep=set(spatial))
     return done
+
+
+def _arranged(facts: dict) -> bool:
+    """Whether ``facts`` (a label's stated spatial facts) arrange its group: a row, column or
+    grid, or a number of rows or columns."""
+    return any(facts.get(k) for k in ARRANGEMENT_KEYS)
 
 
 SQUEEZE = 0.9      # of the room a place leaves, what a too-wide group of controls spans there
@@ -172,7 +178,7 @@ def _flanked(obj: ArticulatedObject, outer: str, inner: str, spatial: dict) -> b
             _place(obj, i, centre, size)
         left += w + GAP
     facts = spatial.get(inner) or {}
-    if len(mid) > 1 and not any(facts.get(k) for k in ARRANGEMENT_KEYS):
+    if len(mid) > 1 and not _arranged(facts):
         _lay_out(obj, mid, [1] * len(mid))
     return True
 
@@ -184,7 +190,7 @@ def _column_beside(obj: ArticulatedObject, label: str, facts: dict) -> bool:
     a drawer over two side by side, one of them 13 cm wide and 50 cm tall."""
     group = _front_group(obj, label, every=False)
     if label != "drawer" or group is None or len(group) < 2 \
-            or any(facts.get(k) for k in ARRANGEMENT_KEYS):
+            or _arranged(facts):
         return False
     return _lay_out(obj, group, [1] * len(group))
 
@@ -197,7 +203,7 @@ def _doors_in_a_row(obj: ArticulatedObject, group: list[int], spatial: dict) -> 
     tall under the drawers (free-form set, seeds 0-2)."""
     facts = spatial.get("door") or {}
     if len(group) < 2 or any(obj.parts[i].label != "door" for i in group) \
-            or any(facts.get(k) for k in ARRANGEMENT_KEYS):
+            or _arranged(facts):
         return False
     if len({round(float(obj.parts[i].bbox_center[V]), 3) for i in group}) == 1:
         return False                                        # a row already
@@ -542,7 +548,7 @@ def _sides_as_line(obj: ArticulatedObject, label: str, facts: dict) -> dict:
     from model.data.spatial import part_position
 
     idx = [i for i, p in enumerate(obj.parts) if p.label == label]
-    if len(idx) < 2 or any(facts.get(k) for k in ARRANGEMENT_KEYS):
+    if len(idx) < 2 or _arranged(facts):
         return facts
     for k, (key, layout) in enumerate((("hpos", "row"), ("vpos", "column"))):
         want = set(facts.get(key) or [])

@@ -612,8 +612,8 @@ def _slim_handles(obj: ArticulatedObject) -> int:
             size[along] = max(size[along], min(size[k], HANDLE_LENGTH * par.bbox_size[along]))
             size[k] = HANDLE_STAND[1]
             centre[k] = par.bbox_center[k] + side * (par.bbox_size[k] + size[k]) / 2
-            p.joint.origin = np.asarray(p.joint.origin, dtype=np.float64) + centre - p.bbox_center
-            p.bbox_center, p.bbox_size = centre, size
+            _move_subtree(obj, i, centre - p.bbox_center)
+            p.bbox_size = size
             changed = True
         else:
             changed = False
@@ -682,14 +682,13 @@ def _meeting_edges(obj: ArticulatedObject) -> int:
     meeting edges is less than the two together plus ``GAP``, each door gives up half the
     rest at its meeting edge (its hinge edge stays): a safe's 4.7 cm thick, 18 cm wide double
     doors 1 mm apart collided at a tenth of their swing. -> the number of doors narrowed."""
-    doors = [i for i in obj.movable_parts() if obj.parts[i].label == "door"
-             and obj.parts[i].joint.type == JointType.REVOLUTE]
+    faces = {i: face_of(obj, i) for i in obj.movable_parts() if obj.parts[i].label == "door"
+             and obj.parts[i].joint.type == JointType.REVOLUTE}
     narrowed = 0
-    for i in doors:
-        for j in doors:
+    for i, face in faces.items():
+        for j, other in faces.items():
             p, q = obj.parts[i], obj.parts[j]
-            face = face_of(obj, i)
-            if i == j or p.parent != q.parent or face is None or face != face_of(obj, j):
+            if i == j or p.parent != q.parent or face is None or face != other:
                 continue
             k, a = face[0], _principal(p.joint.axis)[0]
             if a == k or a != _principal(q.joint.axis)[0]:
