@@ -79,6 +79,26 @@ def test_everyday_names_keep_the_body_sizes_the_data_gives_them():
     assert with_usual_size("a cabinet", cab, {}, decoded=(0.5, 0.5, 0.5)) == {}
 
 
+def test_everyday_names_the_data_lacks_get_their_usual_sizes():
+    """"a TV stand" decoded 1.46 m tall, "a jewelry box" 0.92 m wide and 0.96 m tall, "a gun
+    safe" 0.33 m tall: names the network never saw. Out of the name's usual range
+    (EVERYDAY_RANGES) a dimension takes its usual size; within it, it keeps its decoded one."""
+    cab = "StorageFurniture"
+    assert with_usual_size("a TV stand with two doors", cab, {},
+                           decoded=(0.48, 0.92, 1.46)) == \
+        {"depth": 0.48, "width": 0.92, "height": 0.5}
+    assert with_usual_size("a TV stand", cab, {}, decoded=(0.45, 1.2, 0.55)) == {}
+    assert with_usual_size("a jewelry box with three drawers", cab, {},
+                           decoded=(0.48, 0.92, 0.96)) == \
+        {"depth": 0.2, "width": 0.3, "height": 0.2}
+    assert with_usual_size("a gun safe", "Safe", {}, decoded=(0.41, 0.48, 0.33)) == \
+        {"depth": 0.41, "width": 0.48, "height": 1.5}
+    assert with_usual_size("a 40 cm tall TV stand", cab, {"height": 0.4},
+                           decoded=(0.48, 0.92, 1.46)) == {"height": 0.4}
+    # "bedside table" is the data's own name (NAMED_RANGES), not a side table
+    assert with_usual_size("a bedside table", cab, {}, decoded=(0.45, 0.5, 0.6)) == {}
+
+
 @pytest.mark.parametrize("text,words", [
     ("a tall bathroom cabinet", {"height": 1}),
     ("A very tall, narrow wardrobe with two doors", {"height": 1, "width": -1}),

@@ -857,6 +857,29 @@ def test_a_rack_level_with_the_oven_door_goes_in_behind_it():
         door.bbox_center[0] - door.bbox_size[0] / 2 - GAP + 1e-9
 
 
+def test_a_microwaves_tray_stays_behind_its_door():
+    """A microwave's side-hinged door over the left 55 % of its front and a turntable tray
+    decoded across the whole body: the tray spans the cavity behind the door only (it had
+    stood out through the control panel on the right)."""
+    from model.refine.siblings import RACK_CLEAR
+    obj = ArticulatedObject(category="Oven", name="microwave", parts=[
+        _part("body_0", "body", -1, (0.38, 0.5, 0.3), (0, 0, 0.15)),
+        _part("door_0", "door", 0, (0.01, 0.26, 0.24), (0.19, -0.1, 0.15),
+              Joint(JointType.REVOLUTE, (0.19, -0.23, 0.15), (0, 0, -1), r_range=(0, 1.5))),
+        _part("tray_0", "tray", 0, (0.3, 0.43, 0.012), (0.0, 0.0, 0.1),
+              Joint(JointType.PRISMATIC, (0.15, 0, 0.1), (1, 0, 0), t_range=(0, 0.1))),
+        _part("knob_0", "knob", 0, (0.02, 0.03, 0.03), (0.2, 0.08, 0.2),
+              Joint(JointType.CONTINUOUS, (0.19, 0.08, 0.2), (1, 0, 0))),
+        _part("knob_1", "knob", 0, (0.02, 0.03, 0.03), (0.2, 0.08, 0.1),
+              Joint(JointType.CONTINUOUS, (0.19, 0.08, 0.1), (1, 0, 0))),
+    ])
+    refine_layout(obj)
+    door, tray = obj.parts[1], obj.parts[2]
+    assert tray.bbox_center[1] + tray.bbox_size[1] / 2 <= \
+        door.bbox_center[1] + door.bbox_size[1] / 2 - RACK_CLEAR + 1e-9
+    assert tray.bbox_size[1] > 0.2
+
+
 def test_an_ovens_racks_span_its_cavity_at_the_datas_heights():
     """A dishwasher as decoded: a door over the front, one rack half as deep as the body and
     a second one as a small box high in the body, on top of the first's level. Both racks

@@ -253,6 +253,26 @@ def test_a_keypads_keys_are_no_bigger_than_the_datas():
     assert all(max(p.bbox_size[1:]) <= KEY + 1e-9 for p in keys)
 
 
+def test_a_keypad_is_a_block_of_square_keys():
+    """A hotel safe's nine keys decoded 1.6-2 cm across but spread 16 cm wide: laid out 3 x 3
+    as a block of square keys PITCH of a key apart (they had been 1.6 x 2.9 cm, 7.3 cm
+    apart: three bars across the door)."""
+    from model.refine.arrange import PITCH
+    obj = _safe_door_with_keypad(handle_z=0.4)
+    for n, i in enumerate(range(2, 11)):
+        obj.parts[i].bbox_center = np.array([0.22, -0.08 + 0.02 * n, 0.2 + 0.004 * n])
+        obj.parts[i].bbox_size = np.array([0.01, 0.016 + 0.002 * (n % 2), 0.02 + 0.01 * (n % 3)])
+    _layout(obj, "a hotel safe with a 3x3 keypad on its door")
+    keys = [obj.parts[i] for i in range(2, 11)]
+    assert _grid_of(obj, list(range(2, 11))) == ("grid", 3, 3)
+    side = keys[0].bbox_size[1]
+    assert all(p.bbox_size[1] == pytest.approx(p.bbox_size[2]) == pytest.approx(side)
+               for p in keys)
+    for ax in (1, 2):
+        centres = sorted({round(float(p.bbox_center[ax]), 6) for p in keys})
+        assert np.diff(centres) == pytest.approx([PITCH * side] * 2, rel=0.1)
+
+
 def _range(knobs):
     parts = [_part("body_0", "body", -1, (0.5, 0.7, 0.8), (0, 0, 0.4)),
              _door(0, (0.04, 0.66, 0.56), (0.26, 0.0, 0.36), (0.27, 0.0, 0.08), axis=(0, 1, 0),

@@ -651,6 +651,17 @@ def _lay_out(obj: ArticulatedObject, group: list[int], per_row: list[int],
             if phi[ax] - plo[ax] > 0.5 * (hi[ax] - lo[ax]):
                 lo[ax], hi[ax] = max(lo[ax], plo[ax]), min(hi[ax], phi[ax])
     rows = len(per_row)
+    keypad = parent >= 0 and obj.parts[parent].label in PANELS and all(
+        obj.parts[i].label == "button" for i in group)
+    if keypad:   # the data's keypads: square keys PITCH of a key apart, a block about the
+        key = min(own[H], own[V], KEY)   # middle (a hotel safe's keys were spread 7 cm apart)
+        plo, phi = _lohi(obj.parts[parent])
+        for ax, n in ((H, max(per_row)), (V, rows)):
+            span = PITCH * key * n
+            mid = (lo[ax] + hi[ax]) / 2
+            if phi[ax] - plo[ax] > span:                 # kept on its door
+                mid = float(np.clip(mid, plo[ax] + span / 2, phi[ax] - span / 2))
+            lo[ax], hi[ax] = mid - span / 2, mid + span / 2
     height = (hi[V] - lo[V]) / rows
     # top row first, then the viewer's left first: the model's own order where it had one
     order = sorted(group, key=lambda i: -obj.parts[i].bbox_center[V])
@@ -670,9 +681,8 @@ def _lay_out(obj: ArticulatedObject, group: list[int], per_row: list[int],
                 size[H], size[V] = width - gap, height - gap
             if obj.parts[i].label in ON_FACE:
                 size[H], size[V] = min(size[H], own[H]), min(size[V], own[V])
-                if obj.parts[i].label == "button" and parent >= 0 \
-                        and obj.parts[parent].label in PANELS:   # a keypad's keys
-                    size[H], size[V] = min(size[H], KEY), min(size[V], KEY)
+                if keypad:                       # a keypad's keys: square
+                    size[H] = size[V] = min(size[H], size[V], KEY)
                 size = _round(obj.parts[i].label, size)
             if obj.parts[i].label in PANELS:    # a panel stays thinner than it is wide, so
                 size[FRONT] = min(size[FRONT], THIN * min(size[H], size[V]))   # its face holds

@@ -664,7 +664,8 @@ def _racks(obj: ArticulatedObject, parent: int, members: list[int], k: int, s: f
     """The trays of an oven's front span its cavity as the data's racks do (``RACKS``): the
     network often decodes a second rack as a small box high in the body or a rack half as
     deep as the oven. Across the face and in depth a rack reaches from wall to wall (the
-    category's ``FILL_FRAME`` walls) and from the back wall to behind the door; its
+    category's ``FILL_FRAME`` walls; across the face no further than the door spans) and
+    from the back wall to behind the door; its
     thickness is kept within ``RACK_THICK``. Heights stay as decoded while every rack is
     within ``RACK_BAND`` of the cavity (the height the door covers, else the body's inside)
     and ``RACK_SPACING`` from the next; otherwise they go to ``RACK_LEVELS``. A rack slides
@@ -706,9 +707,10 @@ def _racks(obj: ArticulatedObject, parent: int, members: list[int], k: int, s: f
         t = float(np.clip(hi[2] - lo[2], *RACK_THICK))
         lo[2], hi[2] = z - t / 2, z + t / 2
         lo[k], hi[k] = min(back, front), max(back, front)
-        for d in range(2):
-            if d != k:
-                lo[d], hi[d] = P0[d] + wall + RACK_CLEAR, P1[d] - wall - RACK_CLEAR
+        for d in range(2):     # wall to wall, within the door's span (a microwave's door
+            if d != k:          # leaves its control panel beside it)
+                lo[d] = max(P0[d] + wall, D0[d] if doors else -np.inf) + RACK_CLEAR
+                hi[d] = min(P1[d] - wall, D1[d] if doors else np.inf) - RACK_CLEAR
         _set(obj.parts[i], lo, hi)
         # it slides 40-60 % of its depth and at most RACK_RISE times its height above the
         # cavity's floor, as the data's racks do, and at least RACK_OUT past the front face
