@@ -196,6 +196,21 @@ def test_open_parts_keep_the_networks_own_counts():
     assert s["lid"] == {"count": 1} and s["door"] == {"count": 0} and s["dial"] == {"count": 1}
 
 
+def test_a_number_the_network_put_on_another_control_is_not_its_count():
+    """"a microwave with a door and six buttons": the model makes at most three buttons, and
+    its own reading put the six on knobs (3 buttons and 6 knobs came out). Held at the
+    model's most, the unnamed control that took the stated number gets none; one the own
+    reading counts otherwise keeps its count, and without a clamp nothing changes."""
+    e = parse_prompt("a microwave with a door and six buttons")
+    labels = _all_labels("Oven")
+    s = structure_for(e, "Oven", labels, open_counts={"knob": 6, "door": 1}, clamp=20)
+    assert s["button"] == {"count": 3} and s["knob"] == {"count": 0}
+    s = structure_for(e, "Oven", labels, open_counts={"knob": 2, "door": 1}, clamp=20)
+    assert s["knob"] == {"count": 2}
+    s = structure_for(e, "Oven", labels, open_counts={"knob": 6, "door": 1})
+    assert s["button"] == {"count": 6} and s["knob"] == {"count": 6}
+
+
 def test_the_open_counts_come_from_the_reading_with_the_plan_held(shipped, monkeypatch):
     """The network's own reading that fills the counts a prompt leaves open is decoded as
     free text is: with the START plan head's counts held (``hold_plan``), else the soft plan."""

@@ -29,6 +29,9 @@ CATEGORY_SYNONYMS: dict[str, dict[str, str]] = {
 }
 
 
+CONTROL_LABELS = ("knob", "dial", "button")
+
+
 def stated_counts(expected) -> bool:
     """Whether a parsed prompt (``ExpectedStructure``) fixes the count of any part but the
     body, or bounds it from below ("a cabinet with doors": at least two; the network alone
@@ -94,6 +97,15 @@ def structure_for(expected, category: str, labels: Iterable[str],
         if sides and req.get("joint", "revolute") == "revolute":
             req["hinge"] = sides
         out[lab] = req
+    # a count the prompt gives more of one control than the model makes, which the network's
+    # own reading put on another control the prompt does not name, is not that control's:
+    # "a microwave with a door and six buttons" read as six knobs, to go with three buttons
+    over = {int(expected.counts[lab]) for lab in expected.counts
+            if own(lab) in counts and int(expected.counts[lab]) > counts[own(lab)]}
+    for lab in CONTROL_LABELS:
+        if over and lab in have and lab not in counts and lab not in lows \
+                and int((open_counts or {}).get(lab, 0)) in over:
+            out[lab] = {"count": 0}
     for a, b in STRUCTURE_EXCLUSIVE.get(category, ()):     # a stated lid: no door
         for lab, other in ((a, b), (b, a)):
             if counts.get(lab, 0) > 0 and other not in counts and other in out:
