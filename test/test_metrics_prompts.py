@@ -150,6 +150,14 @@ def test_parse_free_form(prompt, category, counts, lower, joints):
      "StorageFurniture drawer=1 door=2 drawer.vpos=top door.below=drawer"),
     ("a fridge-style cabinet with a door at the bottom of the unit", "StorageFurniture door=1 "
      "door.vpos=bottom"),
+    # a relation said of an open shelf places the part the other way ("an open shelf below":
+    # the drawer at the top; it had been read as the drawer at the bottom)
+    ("a printer stand with a drawer and an open shelf below", "- drawer=1 "
+     "drawer.vpos=top"),
+    ("a nightstand with an open shelf above a drawer", "StorageFurniture drawer=1 "
+     "drawer.vpos=bottom"),
+    ("a cabinet with two doors and an open compartment below them", "StorageFurniture door=2 "
+     "door.vpos=top"),
 ])
 def test_parse_spatial_wordings(prompt, line):
     assert parse_prompt(prompt).to_json() == ExpectedStructure.from_line(line).to_json()

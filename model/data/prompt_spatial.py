@@ -313,6 +313,34 @@ _PANEL = re.compile(r"\b(?:control )?(?:panel|console|fascia|backsplash)\s*$")
 CONTROLS = ("knob", "dial", "button")
 
 
+# an open place of the body, no part of it: "a drawer and an open shelf below" puts the
+# shelf below the drawer, so the drawer at the top
+PLACES = {"shelf", "shelves", "space", "compartment", "compartments", "cubby", "cubbies",
+          "niche", "nook", "opening", "cavity"}
+
+
+def _place_said(toks: list[_Tok], start: int, end: int) -> bool:
+    """Whether an open place (``PLACES``) is named between characters ``start`` and ``end``,
+    with no part named after it there: what a relation word at ``end`` is said of."""
+    between = [t for t in toks if start <= t.start and t.end <= end]
+    places = [n for n, t in enumerate(between) if t.text in PLACES]
+    return bool(places) and not any(t.kind == "PART" for t in between[places[-1]:])
+
+
+def _about_place(f: _Fact, toks: list[_Tok], parts: list[_Tok]) -> _Fact | None:
+    """A relation said of an open place, as the part's own position: "an open shelf below"
+    (the part named before it at the top), "an open shelf above a drawer" (the drawer at the
+    bottom); None when the relation is not said of a place."""
+    said_before = f.key == "relprev" or (f.key == "relit" and f.mode == "post")
+    if said_before or (f.key in ("above", "below") and f.relation_to is not None):
+        before = [t for t in parts if t.end <= f.start]
+        if _place_said(toks, before[-1].end if before else 0, f.start):
+            rel = f.values[0] if said_before else f.key
+            return _Fact("vpos", ["bottom" if rel == "above" else "top"], f.start, f.end,
+                         "post" if said_before else "next", f.relation_to)
+    return None
+
+
 def _of(toks: list[_Tok], t: _Tok) -> bool:
     """Whether part token ``t`` is named as a place: "of" within the two words before it
     ("in the middle of the door", "on top of a cabinet")."""
@@ -329,6 +357,13 @@ def _attach(facts: list[_Fact], toks: list[_Tok], earlier: list[str],
     for f in sorted(facts, key=lambda f: f.implied):     # what is said before what is implied
         allowed = HINGED if f.key in ("hinge", "opens") else \
             ARRANGED if f.key in ARRANGEMENT_KEYS else vocab.COUNTABLE_LABELS
+        place = _about_place(f, toks, parts)
+        if place is not None:
+            target = place.relation_to or ([t.value for t in parts if t.end <= f.start]
+                                           or [None])[-1]
+            if target in vocab.COUNTABLE_LABELS:
+                _merge(spatial.setdefault(target, {}), "vpos", place.values)
+            continue
         if f.key == "relit":
             # "below it, a small door" / "three doors below them": one part kind relative to
             # the one named before
