@@ -223,6 +223,24 @@ def test_alignment_checks_opening_arrangement_and_position():
     assert not alignment_of("three drawers below the door", row).spatial_ok
 
 
+def test_a_stated_top_row_is_checked_row_by_row():
+    """"two drawers on top and two below": parts per row, top row first, as the spatial
+    summary reads them; the annotation line keeps their order."""
+    line = "StorageFurniture drawer=4 drawer.per_row=2/1/1"
+    assert ExpectedStructure.from_line(line).to_line() == line
+    assert ExpectedStructure.from_line(line).spatial["drawer"]["per_row"] == [2, 1, 1]
+    obj = _cabinet("left", drawers=4)            # one column of four above the door
+    expected = parse_prompt("a cabinet with a door, two drawers on top and two drawers below")
+    assert expected.spatial["drawer"]["per_row"] == [2, 1, 1]
+    assert check_alignment(expected, GeneratedStructure.from_object(obj)).spatial == \
+        {"arrangement": False}
+    d = [p for p in obj.parts if p.label == "drawer"]
+    for p, (y, z) in zip(d, [(-0.2, 0.95), (0.2, 0.95), (0.0, 0.8), (0.0, 0.65)]):
+        p.bbox_center = np.array([0.19, y, z])
+    assert check_alignment(expected, GeneratedStructure.from_object(obj)).spatial == \
+        {"arrangement": True}
+
+
 def test_generated_structure_without_geometry_fails_spatial_facts():
     got = GeneratedStructure("StorageFurniture", {"door": 1}, {"door": ["revolute"]})
     r = check_alignment(parse_prompt("a cabinet with a door hinged on the left"), got)

@@ -158,6 +158,15 @@ def test_parse_free_form(prompt, category, counts, lower, joints):
      "drawer.vpos=bottom"),
     ("a cabinet with two doors and an open compartment below them", "StorageFurniture door=2 "
      "door.vpos=top"),
+    # a row of several at the top over the rest: parts per row, top row first
+    ("a dresser with two small drawers on top and three large drawers below",
+     "StorageFurniture drawer=5 drawer.per_row=2/1/1/1"),
+    ("a dresser with 3 drawers on top and 3 drawers side by side below",
+     "StorageFurniture drawer=6 drawer.per_row=3/3"),
+    ("a chest of drawers: five drawers, the top one split into two",
+     "StorageFurniture drawer=6 drawer.per_row=2/1/1/1/1"),
+    ("a desk pedestal with two stacked drawers on top and three drawers below",   # no row
+     "StorageFurniture drawer=5 drawer.layout=column drawer.vpos=bottom/top"),
 ])
 def test_parse_spatial_wordings(prompt, line):
     assert parse_prompt(prompt).to_json() == ExpectedStructure.from_line(line).to_json()

@@ -60,6 +60,22 @@ def test_grid_of_a_stated_arrangement():
     assert _grid({"columns": 3}, 7) == [3, 3, 1]           # the bottom row takes what is left
     assert _grid({"rows": 2, "columns": 2}, 5) is None       # 5 parts do not fit 2 x 2
     assert _grid({"hpos": ["left"]}, 4) is None and _grid({"columns": 2}, 1) is None
+    assert _grid({"per_row": [2, 1, 1, 1]}, 5) == [2, 1, 1, 1]     # a row of two on top
+    assert _grid({"per_row": [2, 1, 1, 1]}, 4) is None              # not the stated count
+
+
+def test_two_small_drawers_on_top_of_three_large_ones():
+    """Five drawers decoded in one column: "two small drawers on top and three large drawers
+    below" lays them out as a row of two over three full-width drawers (they had stayed one
+    column of five)."""
+    from model.data.spatial import arrangement
+    parts = [_part("body_0", "body", -1, (0.5, 1.0, 1.0), (0, 0, 0.5))]
+    for n in range(5):
+        parts.append(_drawer(n, (0.05, 0.0, 0.85 - 0.17 * n)))
+    obj = ArticulatedObject(category="StorageFurniture", name="dresser", parts=parts)
+    _layout_same(obj, "a dresser with two small drawers on top and three large drawers below")
+    drawers = [i for i, p in enumerate(obj.parts) if p.label == "drawer"]
+    assert arrangement(obj, drawers)["per_row"] == [2, 1, 1, 1]
 
 
 def test_six_drawers_decoded_in_one_column_end_up_in_two_columns():

@@ -22,10 +22,12 @@ SPATIAL_KEYS: dict[str, tuple[str, ...]] = {
     "vpos": ("top", "middle", "bottom"),
     "above": (),    # values: part labels
     "below": (),
+    "per_row": ("ints",),   # parts per row, top row first ("2/1/1": two on top of a column)
 }
 SPATIAL_KINDS = {"hinge": "hinge", "opens": "opening", "layout": "arrangement",
                  "rows": "arrangement", "columns": "arrangement", "hpos": "position",
-                 "vpos": "position", "above": "position", "below": "position"}
+                 "vpos": "position", "above": "position", "below": "position",
+                 "per_row": "arrangement"}
 ARRANGEMENT_KEYS = frozenset(k for k, kind in SPATIAL_KINDS.items() if kind == "arrangement")
 POSITION_KEYS = frozenset(k for k, kind in SPATIAL_KINDS.items() if kind == "position")
 
@@ -93,7 +95,7 @@ class ExpectedStructure:
             if m:
                 out.size[m.group(1)] = float(m.group(2))
                 continue
-            m = re.fullmatch(r"([a-z]+)\.([a-z]+)=([a-z0-9/]+)", it)
+            m = re.fullmatch(r"([a-z]+)\.([a-z_]+)=([a-z0-9/]+)", it)
             if m:
                 lab, key, val = m.groups()
                 if lab not in labels or key not in SPATIAL_KEYS:
@@ -101,11 +103,12 @@ class ExpectedStructure:
                                      f"of {list(SPATIAL_KEYS)}")
                 vals = val.split("/")
                 bad = [v for v in vals if v not in SPATIAL_KEYS[key] and not
-                       (SPATIAL_KEYS[key] == ("int",) and v.isdigit())
+                       (SPATIAL_KEYS[key] in (("int",), ("ints",)) and v.isdigit())
                        and not (key in ("above", "below") and v in labels)]
                 if bad:
                     raise ValueError(f"{it!r}: {bad} not among {SPATIAL_KEYS[key]}")
                 fact = int(vals[0]) if SPATIAL_KEYS[key] == ("int",) else \
+                    [int(v) for v in vals] if SPATIAL_KEYS[key] == ("ints",) else \
                     (vals[0] if key == "layout" else sorted(vals))
                 out.spatial.setdefault(lab, {})[key] = fact
                 continue

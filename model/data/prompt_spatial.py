@@ -66,6 +66,48 @@ def _tiers(m: re.Match) -> str:
     return f"{n1} upper {upper} and {n2} lower {parts}{rest}"
 
 
+_ADJ = r"((?:[a-z-]+ ){0,2}?)"
+_ON_TOP = r"(?:on top|at the top|across the top|along the top|up top)"
+_BELOW = r"(?:below|beneath|underneath|under them|below them|beneath them|at the bottom)"
+_FRONT = r"(drawers?|doors?)"
+_TOP_ROW = re.compile(
+    rf"\b{_N} {_ADJ}{_FRONT} (side by side |in a row )?{_ON_TOP},? (?:and|with|over|above) "
+    rf"{_N} {_ADJ}{_FRONT}( side by side| in a row)?(?: {_BELOW})?\b")
+_SPLIT = re.compile(
+    rf"\b{_N} {_FRONT},? (?:with )?the (?:top|upper|first) (?:one|[a-z]+) (?:is |being )?"
+    r"(?:split|divided) (?:into|in) (?:two|2)(?: (?:small(?:er)? )?(?:ones|halves|[a-z]+))?\b")
+
+
+def _top_row(sentence: str) -> tuple[str, list[_Fact]]:
+    """A row of several parts at the top over the rest of that part kind, as a count and a
+    ``per_row`` fact (parts per row, top row first): "two small drawers on top and three
+    large drawers below" is 5 drawers, [2, 1, 1, 1] (the lower ones one to a row unless said
+    side by side: [2, 3]); "five drawers, the top one split into two" is 6 drawers, [2, 1, 1,
+    1, 1] (the top one becomes two)."""
+    facts: list[_Fact] = []
+
+    def tiers(m: re.Match) -> str:
+        n1, w1, row, n2, w2, row2 = (m.group(k) for k in (1, 3, 4, 5, 7, 8))
+        if w1.rstrip("s") != w2.rstrip("s") or _num(n1) < 2 or "stack" in m.group(2):
+            return m.group(0)
+        a, b = _num(n1), _num(n2)
+        facts.append(_Fact("per_row", [[a, b] if row2 else [a] + [1] * b], m.start(),
+                           m.start(), "pre"))
+        # the counts as said, so that a restated count ("five drawers: two small ones on
+        # top and three ...") is read as before; the row is the per_row fact's
+        return f"{n1} {m.group(2)}{w1} and {n2} {m.group(6)}{w2}"
+
+    def split(m: re.Match) -> str:
+        n, w = _num(m.group(1)), m.group(2)
+        if n < 2:
+            return m.group(0)
+        facts.append(_Fact("per_row", [[2] + [1] * (n - 1)], m.start(), m.start(), "pre"))
+        return f"{n + 1} {w}"
+
+    sentence = _TOP_ROW.sub(tiers, sentence)
+    return _SPLIT.sub(split, sentence), facts
+
+
 def _is_part(word: str) -> bool:
     toks = _tokenize(word)
     return len(toks) == 1 and toks[0].kind == "PART"
@@ -91,6 +133,11 @@ def _rewrite_counts(sentence: str) -> tuple[str, list[_Fact]]:
     # two doors"; "three upper and two lower doors" is "three upper doors and two lower doors"
     sentence = re.sub(rf"\b{_N} (?:upper|top) ((?:[a-z-]+ ){{0,2}}?)(?:and|plus|over|above) "
                       rf"{_N} (?:lower|bottom) ([a-z-]+)(?: ([a-z]+))?\b", _tiers, sentence)
+
+    # "two small drawers on top and three large drawers below": a row of two over a column of
+    # three; "five drawers, the top one split into two": a row of two over four
+    sentence, tiered = _top_row(sentence)
+    facts += tiered
 
     # "six pairs of drawers side by side": six rows of two
     sentence = re.sub(rf"\b{_N} pairs of ((?:[a-z]+ )?[a-z]+) side by side\b",

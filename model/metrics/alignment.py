@@ -9,8 +9,9 @@ joint check it asks for passes; prompts that ask for nothing parseable are repor
 (``checked=False``) and left out of the alignment share.
 
 Spatial facts are scored apart (``spatial_ok``, and per kind in ``spatial``): hinge side,
-opening direction, arrangement (row / column / grid, rows, columns) and position (the viewer's
-left / right, top / bottom, one part kind above another), only over prompts that state one.
+opening direction, arrangement (row / column / grid, rows, columns, parts per row) and position
+(the viewer's left / right, top / bottom, one part kind above another), only over prompts that
+state one.
 """
 from __future__ import annotations
 

@@ -561,6 +561,9 @@ def _grid(facts: dict, n: int) -> Optional[list[int]]:
     """Parts per row, top row first, for ``n`` parts and the stated facts (None: nothing
     stated, or nothing that fits ``n``)."""
     layout, rows, cols = facts.get("layout"), facts.get("rows"), facts.get("columns")
+    per_row = facts.get("per_row")
+    if per_row and n >= 2:            # "two small drawers on top and three below": as said
+        return list(per_row) if sum(per_row) == n else None
     if n < 2 or not (layout in ("row", "column") or rows or cols):
         return None
     if layout == "row":
