@@ -152,7 +152,7 @@ def test_parse_free_form(prompt, category, counts, lower, joints):
      "door.vpos=bottom"),
     # a relation said of an open shelf places the part the other way ("an open shelf below":
     # the drawer at the top; it had been read as the drawer at the bottom)
-    ("a printer stand with a drawer and an open shelf below", "- drawer=1 "
+    ("a printer stand with a drawer and an open shelf below", "StorageFurniture drawer=1 "
      "drawer.vpos=top"),
     ("a nightstand with an open shelf above a drawer", "StorageFurniture drawer=1 "
      "drawer.vpos=bottom"),
@@ -165,6 +165,19 @@ def test_parse_free_form(prompt, category, counts, lower, joints):
      "StorageFurniture drawer=6 drawer.per_row=3/3"),
     ("a chest of drawers: five drawers, the top one split into two",
      "StorageFurniture drawer=6 drawer.per_row=2/1/1/1/1"),
+    # "at each end" is two, one on each side, and multiplies nothing after it (the three
+    # drawers had been read as three per door: six)
+    ("a sideboard with a door at each end and three drawers in the middle",
+     "StorageFurniture door=2 drawer=3 door.hpos=left/right drawer.hpos=middle"),
+    # "a drawer below each door": one under each, so both side by side
+    ("a wardrobe with two doors and a drawer below each door", "StorageFurniture door=2 "
+     "drawer=2 drawer.below=door drawer.layout=row door.layout=row"),
+    # a shoe rack is a cabinet, its "rack" no oven tray
+    ("a shoe rack cabinet with three flip-down doors stacked", "StorageFurniture door=3 "
+     "door:revolute door.opens=down door.layout=column"),
+    # a flip cap is a hinged lid (it had been read as a cap, "a flip-top cap" as a cap and a lid)
+    ("a squeeze bottle with a flip cap", "Bottle lid=1"),
+    ("a bottle with a flip-top cap", "Bottle lid=1"),
     ("a desk pedestal with two stacked drawers on top and three drawers below",   # no row
      "StorageFurniture drawer=5 drawer.layout=column drawer.vpos=bottom/top"),
 ])

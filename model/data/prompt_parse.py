@@ -36,14 +36,15 @@ counts.
 """
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 
 from model.data import vocab
 
 # the vocabulary tables, spatial patterns and ExpectedStructure lived in this module: their
 # public names stay importable from it
-from .expected_structure import (SIDES, SPATIAL_KEYS, SPATIAL_KINDS,  # noqa: F401
-                                 ExpectedStructure, read_annotated_prompts)
+from .expected_structure import (ARRANGEMENT_KEYS, SIDES, SPATIAL_KEYS,  # noqa: F401
+                                 SPATIAL_KINDS, ExpectedStructure, read_annotated_prompts)
 from .prompt_lexicon import (DEFINITE, DISTRIBUTIVE, EXACT_NUMBER_PHRASES,  # noqa: F401
                              EXTRA_CATEGORY, EXTRA_MOTION, EXTRA_PART, GENERIC_ROTATION,
                              LOWER_BOUND_PHRASES, LOWER_BOUND_WORDS,
@@ -150,6 +151,8 @@ def _distributive_target(toks: list[_Tok], k: int) -> str | None:
     # before: "each <X> has a <Y>" or "<X>, each with a <Y>"
     for j in range(k - 1, max(-1, k - 8), -1):
         t = toks[j]
+        if t.kind == "DIST" and j + 1 < k and toks[j + 1].text in ("side", "sides", "end", "ends"):
+            break      # "a door at each end and three drawers": two doors, not per door
         if t.kind == "DIST":
             for i in range(j + 1, k):
                 if toks[i].kind == "PART":
@@ -444,12 +447,20 @@ def _tidy(out: ExpectedStructure, text: str) -> None:
         if "rows" in facts and "columns" in facts and "layout" not in facts:
             R, C = facts["rows"], facts["columns"]
             facts["layout"] = "grid" if R > 1 and C > 1 else ("row" if R == 1 else "column")
-    for lab, facts in out.spatial.items():
+    for lab, facts in list(out.spatial.items()):
         if out.counts.get(lab) == 1 and facts.get("layout") == "row" and "rows" not in facts:
             del facts["layout"]        # "one drawer across the top": no row of one
-        # "two doors side by side and a drawer above each door": as many above a row, a row
+        # "two doors side by side and a drawer above each door": as many above a row, a row;
+        # "two doors and a drawer below each door": one under each, so both side by side
         other = (facts.get("above") or facts.get("below") or [None])[0]
-        row = (out.spatial.get(other) or {}).get("layout") == "row"
+        theirs = out.spatial.get(other) or {}
+        row = theirs.get("layout") == "row"
+        each = other is not None and re.search(
+            rf"\b(?:above|below|under|beneath|underneath|over) (?:each|every) {other}\b", low)
+        if each and out.counts.get(other, 0) >= 2 and \
+                not (facts.keys() | theirs.keys()) & ARRANGEMENT_KEYS:
+            row = True
+            out.spatial.setdefault(other, {})["layout"] = "row"
         if row and "layout" not in facts and out.counts.get(lab, 0) >= 2 \
                 and out.counts.get(lab) == out.counts.get(other):
             facts["layout"] = "row"
