@@ -11,7 +11,7 @@ import numpy as np
 from model.core import ArticulatedObject
 from model.data.expected_structure import ARRANGEMENT_KEYS, POSITION_KEYS
 
-from .layout import (CLEAR, CONTROLS, GAP, MIN_KEEP, PANELS, SLIDERS, SMALL, LayoutConfig,
+from .layout import (CLEAR, CONTROLS, GAP, MIN_KEEP, MIN_SIDE, PANELS, SLIDERS, SMALL, LayoutConfig,
                      _attach, _lohi, _move_subtree, _principal, _set, _union, face_of)
 
 CLEAR_SWING = 0.02   # m between a knob, dial or button and a panel edge that swings out
@@ -275,7 +275,8 @@ def _space_small(obj: ArticulatedObject, members: list[int], k: int,
     a pitch apart, stay rows, as do rows the prompt states (``stated_rows``: laid out by
     model.refine.arrange, rows half a size apart)."""
     parts = [obj.parts[i] for i in members]
-    if len(parts) < 2 or not any(_overlap(a, b) for n, a in enumerate(parts) for b in parts[n + 1:]):
+    if len(parts) < 2 or not any(_overlap(a, b) for n, a in enumerate(parts)
+                                 for b in parts[n + 1:]):
         return
     ax = [d for d in range(3) if d != k]
     cs = np.array([p.bbox_center for p in parts])
@@ -440,7 +441,8 @@ def _separate(first_group: list, second_group: list, k: int) -> bool:
     """Cut two groups of sibling boxes apart in the face plane (normal axis ``k``) along the
     in-face axis where their union boxes already stand furthest apart (centre distance over
     mean size): stacked drawers split vertically, a door beside a drawer column sideways.
-    Each box keeps at least MIN_KEEP of its size. Returns whether they overlapped."""
+    Each box keeps at least MIN_KEEP of its size, and MIN_SIDE. Returns whether they
+    overlapped."""
     alo, ahi = _union(first_group)
     blo, bhi = _union(second_group)
     if not (np.all(alo < bhi - GAP / 4) and np.all(blo < ahi - GAP / 4)):
@@ -450,13 +452,18 @@ def _separate(first_group: list, second_group: list, k: int) -> bool:
             key=lambda d: abs(ac[d] - bc[d]) / max((ahi[d] - alo[d] + bhi[d] - blo[d]) / 2, 1e-9))
     low, high = (first_group, second_group) if ac[d] <= bc[d] else (second_group, first_group)
     cut = (max(alo[d], blo[d]) + min(ahi[d], bhi[d])) / 2
+
+    def keep(lo, hi) -> float:      # cut after cut, never below MIN_SIDE (a drawer cut to
+        size = hi[d] - lo[d]         # 0.5 mm meshed as a 65,000-face sheet)
+        return max(MIN_KEEP * size, min(MIN_SIDE, size))
+
     for p in low:
         lo, hi = _lohi(p)
-        hi[d] = min(hi[d], max(cut - GAP / 2, lo[d] + MIN_KEEP * (hi[d] - lo[d])))
+        hi[d] = min(hi[d], max(cut - GAP / 2, lo[d] + keep(lo, hi)))
         _set(p, lo, hi)
     for p in high:
         lo, hi = _lohi(p)
-        lo[d] = max(lo[d], min(cut + GAP / 2, hi[d] - MIN_KEEP * (hi[d] - lo[d])))
+        lo[d] = max(lo[d], min(cut + GAP / 2, hi[d] - keep(lo, hi)))
         _set(p, lo, hi)
     return True
 
