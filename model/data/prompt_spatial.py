@@ -87,7 +87,7 @@ def _top_row(sentence: str) -> tuple[str, list[_Fact]]:
     facts: list[_Fact] = []
 
     def tiers(m: re.Match) -> str:
-        n1, w1, row, n2, w2, row2 = (m.group(k) for k in (1, 3, 4, 5, 7, 8))
+        n1, w1, n2, w2, row2 = (m.group(k) for k in (1, 3, 5, 7, 8))
         if w1.rstrip("s") != w2.rstrip("s") or _num(n1) < 2 or "stack" in m.group(2):
             return m.group(0)
         a, b = _num(n1), _num(n2)
