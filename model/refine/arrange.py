@@ -157,8 +157,8 @@ def _flanks(spatial: Optional[dict]) -> list[tuple[str, str]]:
 def _flanked(obj: ArticulatedObject, outer: str, inner: str, spatial: dict) -> bool:
     """Two fronts of ``outer`` either side of the fronts of ``inner`` on one face: three equal
     columns across the face (within its frame) over the height they all cover, each outer
-    front a side column, the inner group the middle one (one stack, unless the prompt
-    arranges it). The network had put the two doors of "a door on the left and a door on
+    front a side column, the inner group the middle one (one stack, or as the prompt
+    arranges it: "three drawers in a row in the middle" had come out a stack). The network had put the two doors of "a door on the left and a door on
     the right and two drawers in the middle" under the drawers as 22 x 6 cm slivers
     (seed 2)."""
     sides, mid = _front_group(obj, outer), _front_group(obj, inner)
@@ -178,8 +178,8 @@ def _flanked(obj: ArticulatedObject, outer: str, inner: str, spatial: dict) -> b
             _place(obj, i, centre, size)
         left += w + GAP
     facts = spatial.get(inner) or {}
-    if len(mid) > 1 and not _arranged(facts):
-        _lay_out(obj, mid, [1] * len(mid))
+    if len(mid) > 1:        # in the middle column: as the prompt arranges it, else one stack
+        _lay_out(obj, mid, _grid(facts, len(mid)) or [1] * len(mid))
     return True
 
 
