@@ -158,9 +158,9 @@ def _flanked(obj: ArticulatedObject, outer: str, inner: str, spatial: dict) -> b
     """Two fronts of ``outer`` either side of the fronts of ``inner`` on one face: three equal
     columns across the face (within its frame) over the height they all cover, each outer
     front a side column, the inner group the middle one (one stack, or as the prompt
-    arranges it: "three drawers in a row in the middle" had come out a stack). The network had put the two doors of "a door on the left and a door on
-    the right and two drawers in the middle" under the drawers as 22 x 6 cm slivers
-    (seed 2)."""
+    arranges it: "three drawers in a row in the middle" had come out a stack). The network
+    had put the two doors of "a door on the left and a door on the right and two drawers in
+    the middle" under the drawers as 22 x 6 cm slivers (seed 2)."""
     sides, mid = _front_group(obj, outer), _front_group(obj, inner)
     if sides is None or mid is None or len(sides) != 2 or not _same_face(obj, sides, mid):
         return False

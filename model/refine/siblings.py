@@ -11,8 +11,9 @@ import numpy as np
 from model.core import ArticulatedObject
 from model.data.expected_structure import ARRANGEMENT_KEYS, POSITION_KEYS
 
-from .layout import (CLEAR, CONTROLS, GAP, MIN_KEEP, MIN_SIDE, PANELS, SLIDERS, SMALL, LayoutConfig,
-                     _attach, _lohi, _move_subtree, _principal, _set, _union, face_of)
+from .layout import (CLEAR, CONTROLS, GAP, MIN_KEEP, MIN_SIDE, PANELS, SLIDERS, SMALL,
+                     LayoutConfig, _attach, _lohi, _move_subtree, _principal, _set, _union,
+                     face_of)
 
 CLEAR_SWING = 0.02   # m between a knob, dial or button and a panel edge that swings out
 
@@ -685,12 +686,12 @@ def _racks(obj: ArticulatedObject, parent: int, members: list[int], k: int, s: f
     network often decodes a second rack as a small box high in the body or a rack half as
     deep as the oven. Across the face and in depth a rack reaches from wall to wall (the
     category's ``FILL_FRAME`` walls; across the face no further than the door spans) and
-    from the back wall to behind the door; its
-    thickness is kept within ``RACK_THICK``. Heights stay as decoded while every rack is
-    within ``RACK_BAND`` of the cavity (the height the door covers, else the body's inside)
-    and ``RACK_SPACING`` from the next; otherwise they go to ``RACK_LEVELS``. A rack slides
-    out 40-60 % of its depth, at most ``RACK_RISE`` times its height above the cavity's floor
-    and at least ``RACK_OUT`` past the front. Where the prompt places the trays vertically
+    from the back wall to behind the door; its thickness is kept within ``RACK_THICK``.
+    Heights stay as decoded while every rack is within ``RACK_BAND`` of the cavity (the
+    height the door covers, else the body's inside) and ``RACK_SPACING`` from the next;
+    otherwise they go to ``RACK_LEVELS``. A rack slides out 40-60 % of its depth, at most
+    ``RACK_RISE`` times its height above the cavity's floor and at least ``RACK_OUT`` past
+    the front. Where the prompt places the trays vertically
     ("a crumb tray under the door", "a rack at the top") their heights stay, and only those
     in the cavity span it. -> racks changed."""
     trays = [i for i in members if obj.parts[i].label == "tray"]
