@@ -9,7 +9,8 @@ side. A value outside 1 cm - 5 m is not a size a generated object can take and i
 the dimensions the text leaves open (``NAMED_SIZES``: a microwave is read as an oven, whose
 data is 45-95 cm tall, so without it "a microwave" came out oven-sized), and keeps the
 data's everyday names within the body sizes the data gives them (``NAMED_RANGES``: a locker
-is over 1.2 m tall); ``with_usual_layout``
+is over 1.2 m tall), and names the data never uses within their usual sizes
+(``EVERYDAY_RANGES``: a TV stand is 35-70 cm tall); ``with_usual_layout``
 their usual arrangement (``NAMED_LAYOUTS``: a microwave's controls beside its door);
 ``with_usual_keypad`` a keypad the text does not count its usual keys.
 """
