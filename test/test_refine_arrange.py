@@ -576,18 +576,24 @@ def test_fronts_stated_at_the_bottom_keep_to_the_bottom_band():
         assert part_position(obj, i)[1] == "bottom" and top < 0.5, (i, top)
 
 
+def _doors_under_drawers():
+    """"a door on the left and a door on the right and two drawers in the middle" as decoded
+    (seed 2): the two doors 22 x 6 cm slivers under a stack of two full-width drawers."""
+    return ArticulatedObject(category="StorageFurniture", name="f", parts=[
+        _part("body_0", "body", -1, (0.42, 0.48, 0.72), (0, 0, 0.36)),
+        _door(0, (0.017, 0.218, 0.057), (0.2, -0.11, 0.25), (0.21, -0.22, 0.25)),
+        _drawer(0, (0.025, 0.0, 0.6), (0.37, 0.44, 0.21)),
+        _drawer(1, (0.025, 0.0, 0.39), (0.37, 0.44, 0.21)),
+        _door(1, (0.017, 0.218, 0.057), (0.2, 0.11, 0.25), (0.21, 0.22, 0.25))])
+
+
 def test_doors_either_side_of_a_drawer_stack_are_three_columns():
     """"a storage cabinet with a door on the left and a door on the right and two drawers in
     the middle" (seed 2): the network put the two doors under the drawers as 22 x 6 cm
     slivers. Fronts stated left and right of another group's "middle" make three equal
     columns across the face, the middle group one stack; the layout refinement keeps them
     (the doors' group covers the drawers only as a whole, so nothing is cut)."""
-    obj = ArticulatedObject(category="StorageFurniture", name="f", parts=[
-        _part("body_0", "body", -1, (0.42, 0.48, 0.72), (0, 0, 0.36)),
-        _door(0, (0.017, 0.218, 0.057), (0.2, -0.11, 0.25), (0.21, -0.22, 0.25)),
-        _drawer(0, (0.025, 0.0, 0.6), (0.37, 0.44, 0.21)),
-        _drawer(1, (0.025, 0.0, 0.39), (0.37, 0.44, 0.21)),
-        _door(1, (0.017, 0.218, 0.057), (0.2, 0.11, 0.25), (0.21, 0.22, 0.25))])
+    obj = _doors_under_drawers()
     _layout_same(obj, "a storage cabinet with a door on the left and a door on the right and "
                       "two drawers in the middle")
     assert [part_position(obj, i)[0] for i in (1, 2, 3, 4)] == \
@@ -597,18 +603,13 @@ def test_doors_either_side_of_a_drawer_stack_are_three_columns():
     assert max(widths) - min(widths) < 0.01 and min(widths) > 0.12
     doors, drawers = [obj.parts[1], obj.parts[4]], [obj.parts[2], obj.parts[3]]
     assert min(d.bbox_size[2] for d in doors) > 0.4       # full height, not slivers
-    # the middle group as the prompt arranges it ("in a row": it had come out a stack)
-    obj2 = ArticulatedObject(category="StorageFurniture", name="g", parts=[
-        _part("body_0", "body", -1, (0.42, 0.48, 0.72), (0, 0, 0.36)),
-        _door(0, (0.017, 0.218, 0.057), (0.2, -0.11, 0.25), (0.21, -0.22, 0.25)),
-        _drawer(0, (0.025, 0.0, 0.6), (0.37, 0.44, 0.21)),
-        _drawer(1, (0.025, 0.0, 0.39), (0.37, 0.44, 0.21)),
-        _door(1, (0.017, 0.218, 0.057), (0.2, 0.11, 0.25), (0.21, 0.22, 0.25))])
-    _layout_same(obj2, "a TV console: 2 drawers in a row in the middle, with a door at each end")
-    assert _grid_of(obj2, [2, 3]) == ("row", 1, 2)
-    assert [part_position(obj2, i)[0] for i in (1, 4)] == ["left", "right"]
     for a in doors:
         for b in drawers:
             alo, ahi = a.bbox_center - a.bbox_size / 2, a.bbox_center + a.bbox_size / 2
             blo, bhi = b.bbox_center - b.bbox_size / 2, b.bbox_center + b.bbox_size / 2
             assert not np.all((alo < bhi) & (blo < ahi))
+    # the middle group as the prompt arranges it ("in a row": it had come out a stack)
+    row = _doors_under_drawers()
+    _layout_same(row, "a TV console: 2 drawers in a row in the middle, with a door at each end")
+    assert _grid_of(row, [2, 3]) == ("row", 1, 2)
+    assert [part_position(row, i)[0] for i in (1, 4)] == ["left", "right"]

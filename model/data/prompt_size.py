@@ -68,6 +68,10 @@ NAMED_RANGES: dict[str, list[tuple[tuple[str, ...], dict[str, tuple[float, float
               {"width": (0.0, 0.6, 0.47), "height": (0.0, 0.45, 0.36)})],
 }
 
+# a dishwasher's usual body (m), for either category the network reads it as
+_DISHWASHER = {"width": (0.45, 0.61, 0.6), "height": (0.8, 0.9, 0.85),
+               "depth": (0.55, 0.65, 0.6)}
+
 # body ranges (m) of everyday names the data's descriptions never use, from the usual sizes
 # of such furniture and appliances, in the form and use of NAMED_RANGES (lowest, highest,
 # usual). The network reads a name it never saw as no name at all: "a TV stand" decoded
@@ -107,12 +111,10 @@ EVERYDAY_RANGES: dict[str, list[tuple[tuple[str, ...], dict[str, tuple]]]] = {
          {"width": (0.3, 0.5, 0.4), "height": (0.5, 0.75, 0.6), "depth": (0.4, 0.65, 0.5)}),
         (("mini fridge", "minifridge", "bar fridge"),
          {"width": (0.4, 0.6, 0.48), "height": (0.45, 0.9, 0.85), "depth": (0.4, 0.6, 0.5)}),
-        (("dishwasher",),
-         {"width": (0.45, 0.61, 0.6), "height": (0.8, 0.9, 0.85), "depth": (0.55, 0.65, 0.6)}),
+        (("dishwasher",), _DISHWASHER),
     ],
     "Oven": [
-        (("dishwasher",),
-         {"width": (0.45, 0.61, 0.6), "height": (0.8, 0.9, 0.85), "depth": (0.55, 0.65, 0.6)}),
+        (("dishwasher",), _DISHWASHER),
     ],
     "Safe": [
         (("hotel safe", "in-room safe"),

@@ -29,9 +29,6 @@ CATEGORY_SYNONYMS: dict[str, dict[str, str]] = {
 }
 
 
-CONTROL_LABELS = ("knob", "dial", "button")
-
-
 def stated_counts(expected) -> bool:
     """Whether a parsed prompt (``ExpectedStructure``) fixes the count of any part but the
     body, or bounds it from below ("a cabinet with doors": at least two; the network alone
@@ -58,6 +55,7 @@ def structure_for(expected, category: str, labels: Iterable[str],
     from model.articulation.structure_control import (HINGED_LABELS, STRUCTURE_EXCLUSIVE,
                                                       STRUCTURE_GRAMMAR)
     from model.core.structure import HINGE_SIDES
+    from model.data.prompt_spatial import CONTROLS
 
     grammar = STRUCTURE_GRAMMAR[category]
     have = set(labels) & set(grammar)
@@ -102,7 +100,7 @@ def structure_for(expected, category: str, labels: Iterable[str],
     # "a microwave with a door and six buttons" read as six knobs, to go with three buttons
     over = {int(expected.counts[lab]) for lab in expected.counts
             if own(lab) in counts and int(expected.counts[lab]) > counts[own(lab)]}
-    for lab in CONTROL_LABELS:
+    for lab in CONTROLS:
         if over and lab in have and lab not in counts and lab not in lows \
                 and int((open_counts or {}).get(lab, 0)) in over:
             out[lab] = {"count": 0}
