@@ -862,6 +862,43 @@ def test_knobs_over_an_open_front_get_a_panel_behind_them():
     assert add_control_panels(obj, mans) == []                            # backed now
 
 
+def test_an_oven_front_is_closed_around_its_door():
+    """A microwave whose body the shape prior left open across the whole front, its door
+    covering the left two thirds: the front gets a plate around the door (the cavity no
+    longer shows beside it), an opening GAP around the door, nothing in the door or the
+    buttons, and the body still exports closed. Storage keeps its open front."""
+    from model.core import meshops
+    from model.refine.layout import GAP
+    from model.refine.meshes import FRONT_INSET, PANEL, _closed_on_export, _merged_closed, \
+        close_fronts
+
+    def microwave(category):
+        return ArticulatedObject(category=category, name="microwave", parts=[
+            _part("body_0", "body", -1, (0.4, 0.6, 0.35), (0, 0, 0.175)),
+            _part("door_0", "door", 0, (0.03, 0.4, 0.31), (0.215, -0.08, 0.175),
+                  Joint(JointType.REVOLUTE, (0.2, -0.28, 0.175), (0, 0, 1), r_range=(0, 1.5))),
+            _part("button_0", "button", 0, (0.01, 0.04, 0.03), (0.205, 0.2, 0.25),
+                  Joint(JointType.PRISMATIC, (0.2, 0.2, 0.25), (-1, 0, 0), t_range=(0, 0.005))),
+        ])
+    carcass = meshops.box((0.4, 0.6, 0.35), (0, 0, 0.175)) - meshops.box((0.4, 0.56, 0.31),
+                                                                           (0.03, 0, 0.175))
+    obj = microwave("StorageFurniture")
+    mans = {i: meshops.box(p.bbox_size, p.bbox_center) for i, p in enumerate(obj.parts)}
+    mans[0] = carcass
+    assert close_fronts(obj, mans) == [] and mans[0] is carcass
+    obj = microwave("Oven")
+    assert close_fronts(obj, mans) == ["body_0:x+"]
+    plate = mans[0] - carcass
+    lo, hi = np.asarray(plate.bounding_box()).reshape(2, 3)
+    assert np.allclose([lo[0], hi[0]], [0.2 - FRONT_INSET - PANEL, 0.2 - FRONT_INSET])
+    assert np.isclose(lo[1], 0.12 + GAP) and np.isclose(hi[1], 0.28)   # door's edge to wall
+    beside = meshops.box((0.01, 0.1, 0.1), (0.19, 0.18, 0.1))        # where the cavity showed
+    assert float((plate ^ beside).volume()) > 0.99 * float(beside.volume())
+    for i in (1, 2):
+        assert float((mans[0] ^ mans[i]).volume()) < 1e-9
+    assert _merged_closed(_closed_on_export(mans[0]))
+
+
 def test_a_rack_level_with_the_oven_door_goes_in_behind_it():
     """A rack decoded with its front at the oven's face, where the door filling the front
     now reaches: it moves into the cavity, GAP behind the door."""

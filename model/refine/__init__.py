@@ -31,7 +31,8 @@ class RefineConfig:
     carve: bool = True             # parents give way where a moving child passes
     runners: bool = True           # a detached drawer gets a slab of its parent to slide on
     settle: bool = True            # a lid or cap hovering over its parent's mesh comes down
-    panels: bool = True            # controls with nothing behind them get a plate of it
+    panels: bool = True            # controls with nothing behind them get a plate of it,
+                                   # an oven's front is closed around its doors and drawers
     limits: bool = True            # a range ends where its sweep still collides
     vessels: bool = True           # a bottle stands on the hull of its body below the cap
     foot: bool = True              # the root's box pieces get a slab over its footprint
@@ -58,6 +59,7 @@ def refine_meshes(obj: ArticulatedObject, config: Optional[RefineConfig] = None,
         report["lids_fitted"] = M.fit_lids_to_necks(obj, mans)
     if cfg.panels and not frozen:
         report["control_panels"] = M.add_control_panels(obj, mans)
+        report["fronts_closed"] = M.close_fronts(obj, mans)
     if cfg.carve:
         carved = M.carve_parents(obj, mans)
         for i, sweep in carved.items():

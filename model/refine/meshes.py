@@ -460,6 +460,57 @@ def add_control_panels(obj: ArticulatedObject, mans: dict, depth: float = PANEL)
     return sorted(obj.parts[c].name for g in floating.values() for c in g)
 
 
+CLOSED_FRONTS = ("Oven",)   # categories whose front is closed around its doors and drawers
+FRONT_INSET = 0.001         # m: the plate stays this far inside the body's outline and face
+
+
+def close_fronts(obj: ArticulatedObject, mans: dict, depth: float = PANEL) -> list[str]:
+    """An oven's front is closed around its doors and drawers, as an appliance's is (the
+    data's ovens: walls and a control panel around the door): the shape prior draws the
+    body's opening across the whole front wherever the door is, and a door that covers half
+    of it leaves the cavity showing beside it. Each face of the root that holds a door or
+    drawer gets a plate ``depth`` deep behind it over its outline (``FRONT_INSET`` inside),
+    with an opening ``GAP`` around each door, drawer or tray of that face, less what the
+    other parts occupy. Runs after :func:`add_control_panels` and before carving (which cuts
+    the doors' sweep out of it). A plate whose union with the body would not export as a
+    closed mesh is not added. Returns the faces closed, as "<part>:<axis><sign>"."""
+    from .layout import FRONT_LABELS, GAP, _lohi, face_of
+    if obj.category not in CLOSED_FRONTS:
+        return []
+    mf = meshops._mf()
+    faces: dict[tuple, list[int]] = {}
+    for c, p in enumerate(obj.parts):
+        face = face_of(obj, c)
+        if p.label in FRONT_LABELS and face is not None and face[0] != 2 \
+                and obj.parts[p.parent].parent < 0 and p.parent in mans:
+            faces.setdefault((p.parent, *face), []).append(c)
+    closed = []
+    for (par, k, s), fronts in faces.items():
+        plo, phi = np.asarray(mans[par].bounding_box()).reshape(2, 3)
+        lo, hi = plo + FRONT_INSET, phi - FRONT_INSET
+        plane = (phi[k] if s > 0 else plo[k]) - s * FRONT_INSET
+        lo[k], hi[k] = sorted((plane, plane - s * depth))
+        cuts = []
+        for f in fronts:
+            flo, fhi = _lohi(obj.parts[f])
+            flo, fhi = flo - GAP, fhi + GAP
+            flo[k], fhi[k] = lo[k] - 1.0, hi[k] + 1.0
+            cuts.append(meshops.box(fhi - flo, (flo + fhi) / 2))
+        others = [m for i, m in mans.items() if i != par]
+        plate = mf.Manifold.batch_boolean([meshops.box(hi - lo, (lo + hi) / 2), *cuts, *others],
+                                          mf.OpType.Subtract)
+        if plate.is_empty():
+            continue
+        body = mf.Manifold.batch_boolean([mans[par], plate], mf.OpType.Add)
+        if not _merged_closed(_closed_on_export(body)):
+            log.debug("closing %s's front would not export closed; left open",
+                      obj.parts[par].name)
+            continue
+        mans[par] = body
+        closed.append(f"{obj.parts[par].name}:{'xyz'[k]}{'+' if s > 0 else '-'}")
+    return closed
+
+
 def round_collision(obj: ArticulatedObject, mans: dict, solid: float = 0.7) -> list[str]:
     """Knobs and dials collide as the convex hull of their mesh when it is nearly convex:
     box pieces fitted to a round part sweep their corners beyond the part when it turns (a
@@ -642,5 +693,5 @@ def _merged_closed(mesh) -> bool:
     return bool(m.is_watertight)
 
 
-__all__ = ["revolved_sweep", "vessel_collision", "add_runners", "round_collision", "drop_floaters", "simplify_to_budget", "first_step", "carve_parents", "carve_collision", "shrink_limits",
+__all__ = ["revolved_sweep", "vessel_collision", "add_runners", "round_collision", "close_fronts", "drop_floaters", "simplify_to_budget", "first_step", "carve_parents", "carve_collision", "shrink_limits",
            "swept_hull", "manifolds_of", "store"]
