@@ -576,6 +576,31 @@ def test_fronts_stated_at_the_bottom_keep_to_the_bottom_band():
         assert part_position(obj, i)[1] == "bottom" and top < 0.5, (i, top)
 
 
+def test_drawers_stated_on_the_right_are_a_column_in_the_right_band():
+    """"a desk with three drawers on the right" (seed 0): the network's drawers spanned 90 %
+    of the width, two side by side over a wide one, and the fill grew them back over the
+    face. The face's only fronts stated on one side take that side's band as one column
+    and grow only towards that edge, the rest of the face left open (a pedestal); with a
+    door beside them the drawers keep their own width."""
+    def desk(*extra):
+        return ArticulatedObject(category="StorageFurniture", name="d", parts=[
+            _part("body_0", "body", -1, (0.46, 0.97, 1.02), (0, 0, 0.51)),
+            _drawer(0, (0.21, 0.24, 0.83), (0.03, 0.46, 0.31)),
+            _drawer(1, (0.21, -0.23, 0.83), (0.03, 0.47, 0.31)),
+            _drawer(2, (0.21, 0.0, 0.19), (0.03, 0.94, 0.31)), *extra])
+    obj = desk()
+    _layout_same(obj, "a desk with three drawers on the right")
+    for i in (1, 2, 3):
+        p = obj.parts[i]
+        assert part_position(obj, i)[0] == "right", i
+        assert p.bbox_center[1] - p.bbox_size[1] / 2 > 0.05, i      # the left half open
+        assert p.bbox_size[1] < 0.45 * 0.97, i
+    assert _grid_of(obj, [1, 2, 3]) == ("column", 3, 1)
+    obj = desk(_door(3, (0.02, 0.3, 0.9), (0.22, -0.3, 0.5), (0.23, -0.45, 0.5)))
+    _layout(obj, "a desk with a door and three drawers on the right")
+    assert all(part_position(obj, i)[0] == "right" for i in (1, 2, 3))
+
+
 def _doors_under_drawers():
     """"a door on the left and a door on the right and two drawers in the middle" as decoded
     (seed 2): the two doors 22 x 6 cm slivers under a stack of two full-width drawers."""

@@ -101,11 +101,13 @@ def test_doors_open_outwards_after_set_hinge():
 
 def test_grammar_matches_the_data_generator():
     """Every part of generated training objects fits STRUCTURE_GRAMMAR (parent label, joint
-    type, count per object) and no object has two exclusive labels."""
+    type, count per object), no object has two exclusive labels, and each has its
+    category's required labels."""
     from model.articulation.decode import STRUCTURE_EXCLUSIVE, STRUCTURE_GRAMMAR
+    from model.articulation.structure_control import STRUCTURE_REQUIRED
     from helpers import built_object
     for cat, grammar in STRUCTURE_GRAMMAR.items():
-        for index in range(2):
+        for index in range(6 if cat in STRUCTURE_REQUIRED else 2):
             obj = built_object(7, index, cat)
             counts = Counter(p.label for p in obj.parts)
             for p in obj.parts:
@@ -117,6 +119,8 @@ def test_grammar_matches_the_data_generator():
                 assert counts[p.label] <= most, (cat, p.label, counts[p.label])
             for a, b in STRUCTURE_EXCLUSIVE.get(cat, []):
                 assert not (counts[a] and counts[b]), (cat, a, b)
+            for lab in STRUCTURE_REQUIRED.get(cat, ()):
+                assert counts[lab] >= 1, (cat, lab)
 
 
 # -- the shipped model ---------------------------------------------------------------------------

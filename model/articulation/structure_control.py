@@ -58,6 +58,8 @@ STRUCTURE_GRAMMAR: dict[str, dict[str, tuple]] = {
 # machine is a front loader with a door and maybe a drawer, or a top loader with a lid)
 STRUCTURE_EXCLUSIVE = {"Bottle": [("cap", "lid")],
                        "WashingMachine": [("door", "lid"), ("drawer", "lid")]}
+# labels every object of the category has in the data (an oven or safe is closed by a door)
+STRUCTURE_REQUIRED = {"Oven": ("door",), "Safe": ("door",)}
 HINGED_LABELS = ("door",)   # labels a structure may give hinge sides
 
 

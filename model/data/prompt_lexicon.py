@@ -32,7 +32,7 @@ EXTRA_CATEGORY = {
                          "curio cabinet", "desk pedestal", "wall cabinet", "base cabinet"),
     "Safe": ("safety box", "cash box", "deposit box", "safe deposit box", "gun safe", "wall safe"),
     "Oven": ("toaster oven", "microwave oven", "baking oven", "electric oven", "gas oven",
-             "microwave", "microwaves"),
+             "microwave", "microwaves", "dishwasher", "dish washer", "dishwashers"),
     "WashingMachine": ("washer-dryer", "laundry washer", "washing-machine", "washers",
                        "front loader", "top loading washer"),
     "Bottle": ("thermos", "vial", "water flask", "jug", "canteen", "bottles", "flasks"),

@@ -408,8 +408,11 @@ IMPLIED_BY_CATEGORY = {
          ("lid", "revolute"))),
 }
 # A microwave's door hangs on its left side (the viewer's left) and swings open sideways,
-# as the data's side-hinged ovens do, unless the prompt says anything of hinges or opening.
-SIDE_HINGED_NAMES = {"Oven": (("microwave",), "left")}
+# as the data's side-hinged ovens do, and a dishwasher's drops down, hinged at the bottom,
+# as most of the data's ovens' do, unless the prompt says anything of hinges or opening:
+# category -> ((names, hinge side, opening), ...).
+HINGED_NAMES = {"Oven": ((("microwave",), "left", "sideways"),
+                         (("dishwasher", "dish washer"), "bottom", "down"))}
 
 
 def _tidy(out: ExpectedStructure, text: str) -> None:
@@ -425,15 +428,18 @@ def _tidy(out: ExpectedStructure, text: str) -> None:
             out.counts[lab] = 1
             out.joint_types.setdefault(lab, [jt])
             break
-    names, side = SIDE_HINGED_NAMES.get(out.category, ((), ""))
-    if any(n in low for n in names) and out.counts.get("door", 1) == 1 and "lid" not in named:
+    for names, side, opens in HINGED_NAMES.get(out.category, ()):
+        if not any(n in low for n in names) or out.counts.get("door", 1) != 1 \
+                or "lid" in named:
+            continue
         if "door" not in named:
             out.counts["door"] = 1
             out.joint_types.setdefault("door", ["revolute"])
         door = out.spatial.get("door", {})
         said = any(w in low for w in ("hinge", "open", "swing", "drop", "flap", "pull-down"))
         if not (door.get("hinge") or door.get("opens") or said):
-            out.spatial["door"] = {**door, "hinge": [side], "opens": ["sideways"]}
+            out.spatial["door"] = {**door, "hinge": [side], "opens": [opens]}
+        break
     if out.category == "USB" and "lid" in (set(out.counts) | set(out.min_counts)) \
             and "cap" not in out.counts:          # a USB stick's cover is its cap
         _relabel(out, "lid", "cap")

@@ -48,12 +48,13 @@ def structure_for(expected, category: str, labels: Iterable[str],
     part label of the category is left to the network: its count in ``open_counts`` (what
     the network's own decoding of the prompt made, within the label's training maximum; at
     least a stated lower bound such as "drawers"), or ``"auto"`` without it (a stated lower
-    bound is then the count: "a keypad" is at least two buttons). Handles stay
-    ``"auto"``: they follow their doors and drawers. ``clamp`` (> 0): stated counts above a
+    bound is then the count: "a keypad" is at least two buttons); a label every training
+    object of the category has (``STRUCTURE_REQUIRED``: an oven's door) at least one.
+    Handles stay ``"auto"``: they follow their doors and drawers. ``clamp`` (> 0): stated counts above a
     label's training maximum, or above ``clamp``, are held at the smaller of the two.
     """
     from model.articulation.structure_control import (HINGED_LABELS, STRUCTURE_EXCLUSIVE,
-                                                      STRUCTURE_GRAMMAR)
+                                                      STRUCTURE_GRAMMAR, STRUCTURE_REQUIRED)
     from model.core.structure import HINGE_SIDES
     from model.data.prompt_spatial import CONTROLS
 
@@ -108,6 +109,12 @@ def structure_for(expected, category: str, labels: Iterable[str],
         for lab, other in ((a, b), (b, a)):
             if counts.get(lab, 0) > 0 and other not in counts and other in out:
                 out[other] = {"count": 0}
+    # a part every object of the data has, left to the network, is there: "a dishwasher with
+    # two racks" had been decoded with no door (an "auto" one too, when at most one is made)
+    for lab in STRUCTURE_REQUIRED.get(category, ()):
+        if lab not in counts and lab in have and (out.get(lab) == {"count": 0} or (
+                out.get(lab) == "auto" and int(grammar[lab][2]) == 1)):
+            out[lab] = {"count": 1}
     for lab, n in counts.items():
         hosts = grammar[lab][0] if lab in have else ()
         if n > 0 and len(hosts) == 1 and hosts[0] != "body" and out.get(hosts[0]) == "auto":

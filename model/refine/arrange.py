@@ -76,7 +76,8 @@ def arrange_stated(obj: ArticulatedObject, spatial: Optional[dict]) -> list[str]
                     done.append("door: a row")
         for key, ax in (("hpos", H), ("vpos", V)):
             want = facts.get(key) or []
-            if ax not in banded and len(want) == 1 and _to_place(obj, label, ax, want[0]):
+            if ax not in banded and len(want) == 1 \
+                    and _to_place(obj, label, ax, want[0], column=not _arranged(facts)):
                 done.append(f"{label} to the {want[0]}")
     for group in grids:
         _clear_grid(obj, group, keep=set(spatial))
@@ -95,12 +96,15 @@ PLACE_AT = 0.6     # where a group stated on one side goes: its centre this many
                    # left / right starts at model.data.spatial.HPOS_MARGIN = 0.2)
 
 
-def _to_place(obj: ArticulatedObject, label: str, ax: int, where: str) -> bool:
+def _to_place(obj: ArticulatedObject, label: str, ax: int, where: str,
+              column: bool = False) -> bool:
     """A group stated on one side or in the middle of the object ("a dial on the right",
     "three drawers in the middle", "buttons at the top") that no other group was banded
     against: moved along ``ax`` to that place on the body, within its parent's face, unless
     it is there already. Not up or down where a panel on the face turns about a horizontal
-    axis (an oven's drop-down door stays at the bottom)."""
+    axis (an oven's drop-down door stays at the bottom). Fronts take the band of the face
+    on that side; drawers alone on their face on the left or right, with no arrangement of
+    their own (``column``), are one column in it, as a desk's pedestal is."""
     from model.data.spatial import HPOS_MARGIN, VPOS_MARGIN, body_box
 
     group = _front_group(obj, label, every=False)
@@ -126,10 +130,12 @@ def _to_place(obj: ArticulatedObject, label: str, ax: int, where: str) -> bool:
     narrow = f * float(steps.min()) * (1 - GAP_SHARE) if f < 1 and len(steps) else math.inf
     lo, hi = _cspan(obj, group, ax)
     band, shrink = 2 * (1 - PLACE_AT) * half, 1.0
-    if ax == V and sign and obj.parts[group[0]].label in BANDED and hi - lo > band:
-        # fronts at the top or bottom take that band of the face, as they would above or
-        # below another group: two doors "at the bottom" of a bookcase, decoded over 79 % of
-        # its height, stayed in its middle third
+    banded = sign and obj.parts[group[0]].label in BANDED and hi - lo > band
+    if banded:
+        # fronts at the top or bottom (on the left or right) take that band of the face, as
+        # they would above or below (beside) another group: two doors "at the bottom" of a
+        # bookcase, decoded over 79 % of its height, stayed in its middle third; "three
+        # drawers on the right", decoded over 90 % of a cabinet's width, stayed in its middle
         f = shrink = band / (hi - lo)
     mid = (u.max() + u.min()) / 2
     new = [(float(bc[ax]) + sign * PLACE_AT * half + f * (c - mid), min(s * shrink, narrow))
@@ -141,6 +147,11 @@ def _to_place(obj: ArticulatedObject, label: str, ax: int, where: str) -> bool:
         centre, box = obj.parts[i].bbox_center.copy(), obj.parts[i].bbox_size.copy()
         centre[ax], box[ax] = c + d, s
         _place(obj, i, centre, _round(obj.parts[i].label, box))
+    face = face_of(obj, group[0])
+    if banded and ax == H and column and len(group) > 1 and obj.parts[group[0]].label == "drawer" \
+            and not any(obj.parts[c].label in BANDED and c not in group
+                        for c in obj.children(parent) if face_of(obj, c) == face):
+        _lay_out(obj, group, [1] * len(group))     # a pedestal: one column in its band
     return True
 
 

@@ -580,7 +580,8 @@ def _fill(obj: ArticulatedObject, parent: int, members: list[int], k: int,
     so, and every small part beside it; nothing shrinks. A tray it now covers goes in behind it
     (``_recess``). A front the prompt puts on one side
     (``stated``: "a door on the left") keeps its centre there, at least ``KEEP_SIDE`` of the
-    half-face off the middle; one it puts at the top or bottom grows only towards that edge.
+    half-face off the middle; one it puts at the top or bottom, or the face's only kind of
+    front on one side ("three drawers on the right"), grows only towards that edge.
     A drawer's children move with its centre; a door's stay where they are (on the door,
     which only grew: a dial stated in the middle stays there).
     -> the number of parts grown."""
@@ -601,6 +602,7 @@ def _fill(obj: ArticulatedObject, parent: int, members: list[int], k: int,
             if d != 2 or bottom:
                 R0[d] = min(R0[d], P0[d] + frame)
     start = {i: obj.parts[i].bbox_center.copy() for i in fronts}
+    alone = len({obj.parts[i].label for i in fronts}) == 1     # one kind of front on the face
     axes = sorted((d for d in range(3) if d != k), key=lambda d: d != 2)   # z first
     for n, d in enumerate(axes):
         box = {i: _lohi(obj.parts[i]) for i in fronts + fixed}
@@ -623,11 +625,12 @@ def _fill(obj: ArticulatedObject, parent: int, members: list[int], k: int,
             lo0, hi0 = lo[d], hi[d]
             lo[d], hi[d] = min(lo[d], down), max(hi[d], up)
             side = _kept_side(stated or {}, obj.parts[i].label, d)
-            if side is not None and d == 2:   # "at the bottom" / "on top": it grows to
-                if side < 0:                    # that edge only, the rest of the face left
-                    hi[d] = hi0                 # open ("a bookcase with two doors at the
-                else:                           # bottom" had its doors grown to 80 % of
-                    lo[d] = lo0                 # its height)
+            if side is not None and (d == 2 or alone):   # "at the bottom" / "on top", or
+                if side < 0:           # the face's only fronts "on the right": it grows to
+                    hi[d] = hi0        # that edge only, the rest of the face left open ("a
+                else:                  # bookcase with two doors at the bottom" had its doors
+                    lo[d] = lo0        # grown to 80 % of its height; "a desk with three
+                                       # drawers on the right" to three quarters of its width)
             elif side is not None:   # the centre stays off the middle on its stated side
                 mid, half = (P0[d] + P1[d]) / 2, (P1[d] - P0[d]) / 2
                 off = min(side * (start[i][d] - mid) / half, KEEP_SIDE)
