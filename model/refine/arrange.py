@@ -103,8 +103,8 @@ def _to_place(obj: ArticulatedObject, label: str, ax: int, where: str,
     against: moved along ``ax`` to that place on the body, within its parent's face, unless
     it is there already. Not up or down where a panel on the face turns about a horizontal
     axis (an oven's drop-down door stays at the bottom). Fronts take the band of the face
-    on that side; drawers alone on their face on the left or right, with no arrangement of
-    their own (``column``), are one column in it, as a desk's pedestal is."""
+    on that side (on the left or right: where they are all their face holds; drawers with no
+    arrangement of their own, ``column``, are then one column in it, a desk's pedestal)."""
     from model.data.spatial import HPOS_MARGIN, VPOS_MARGIN, body_box
 
     group = _front_group(obj, label, every=False)
@@ -130,7 +130,10 @@ def _to_place(obj: ArticulatedObject, label: str, ax: int, where: str,
     narrow = f * float(steps.min()) * (1 - GAP_SHARE) if f < 1 and len(steps) else math.inf
     lo, hi = _cspan(obj, group, ax)
     band, shrink = 2 * (1 - PLACE_AT) * half, 1.0
-    banded = sign and obj.parts[group[0]].label in BANDED and hi - lo > band
+    face = face_of(obj, group[0])
+    others = [c for c in obj.children(parent) if c not in group and face_of(obj, c) == face]
+    banded = sign and obj.parts[group[0]].label in BANDED and hi - lo > band \
+        and (ax == V or not others)      # left or right: when the group is all its face holds
     if banded:
         # fronts at the top or bottom (on the left or right) take that band of the face, as
         # they would above or below (beside) another group: two doors "at the bottom" of a
@@ -147,10 +150,7 @@ def _to_place(obj: ArticulatedObject, label: str, ax: int, where: str,
         centre, box = obj.parts[i].bbox_center.copy(), obj.parts[i].bbox_size.copy()
         centre[ax], box[ax] = c + d, s
         _place(obj, i, centre, _round(obj.parts[i].label, box))
-    face = face_of(obj, group[0])
-    if banded and ax == H and column and len(group) > 1 and obj.parts[group[0]].label == "drawer" \
-            and not any(obj.parts[c].label in BANDED and c not in group
-                        for c in obj.children(parent) if face_of(obj, c) == face):
+    if banded and ax == H and column and len(group) > 1 and obj.parts[group[0]].label == "drawer":
         _lay_out(obj, group, [1] * len(group))     # a pedestal: one column in its band
     return True
 

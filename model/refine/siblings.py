@@ -580,8 +580,8 @@ def _fill(obj: ArticulatedObject, parent: int, members: list[int], k: int,
     so, and every small part beside it; nothing shrinks. A tray it now covers goes in behind it
     (``_recess``). A front the prompt puts on one side
     (``stated``: "a door on the left") keeps its centre there, at least ``KEEP_SIDE`` of the
-    half-face off the middle; one it puts at the top or bottom, or the face's only kind of
-    front on one side ("three drawers on the right"), grows only towards that edge.
+    half-face off the middle; one it puts at the top or bottom, or on one side where its
+    kind is all the face holds ("three drawers on the right"), grows only towards that edge.
     A drawer's children move with its centre; a door's stay where they are (on the door,
     which only grew: a dial stated in the middle stays there).
     -> the number of parts grown."""
@@ -602,7 +602,7 @@ def _fill(obj: ArticulatedObject, parent: int, members: list[int], k: int,
             if d != 2 or bottom:
                 R0[d] = min(R0[d], P0[d] + frame)
     start = {i: obj.parts[i].bbox_center.copy() for i in fronts}
-    alone = len({obj.parts[i].label for i in fronts}) == 1     # one kind of front on the face
+    alone = len({obj.parts[i].label for i in fronts}) == 1 and not fixed  # all the face holds
     axes = sorted((d for d in range(3) if d != k), key=lambda d: d != 2)   # z first
     for n, d in enumerate(axes):
         box = {i: _lohi(obj.parts[i]) for i in fronts + fixed}
