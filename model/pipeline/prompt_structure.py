@@ -9,7 +9,8 @@ types and hinge sides exactly, and decoding is held to them through structure co
 (``decode(structure=...)``). The network still chooses everything the prompt leaves open: the
 category when the prompt does not name one, the count of every part it does not mention, all
 boxes, joints and shapes. A prompt that states no count, or counts this model's categories
-cannot hold, decodes freely, as without this step.
+cannot hold, decodes freely, as without this step; one that names its category keeps it,
+without the parts the category lacks.
 """
 from __future__ import annotations
 
@@ -203,8 +204,9 @@ def _hinge_sides(expected, lab: str, count: int, allowed) -> Optional[list]:
 def resolve_prompt_structure(decoder, expected, categories: list[str], *, max_nodes: int,
                              max_children: int, own_reading=None):
     """The first of ``categories`` (in order of preference) whose structure for the parsed
-    prompt this decoder can produce -> (structure dict, StructurePlan); (None, None) when none
-    can (the prompt then decodes freely). ``own_reading``: the network's own decoding of the
+    prompt this decoder can produce -> (structure dict, StructurePlan); where none can and the
+    first is the category the prompt names, that category's structure without the parts it
+    lacks (with a warning); else (None, None) (the prompt then decodes freely). ``own_reading``: the network's own decoding of the
     prompt (a DecodedTree); the parts the prompt leaves open keep its counts where its
     category is the one held, else they are ``"auto"``."""
     labels_of: dict[str, set] = {}
@@ -235,5 +237,34 @@ def resolve_prompt_structure(decoder, expected, categories: list[str], *, max_no
                     log.warning("the prompt asks for more parts than the model makes (%s); "
                                 "holding %s", "; ".join(dict.fromkeys(why)), spec)
                 return spec, plan
+    named = expected.category
+    if named is not None and categories and categories[0] == named:
+        # the category the prompt names, without the parts it lacks ("a jewelry box with a
+        # lid" had been decoded freely: a bottle), rather than another category
+        have = labels_of.get(named, set())
+        missing = sorted({lab for lab, n in expected.counts.items() if n and lab != "body"
+                          and _own_label(named, lab, have) not in have}
+                         | {lab for lab in expected.min_counts
+                            if _own_label(named, lab, have) not in have})
+        if missing:
+            kept = _without(expected, missing)
+            spec, plan = resolve_prompt_structure(decoder, kept, [named], max_nodes=max_nodes,
+                                                  max_children=max_children,
+                                                  own_reading=own_reading)
+            if spec is not None:
+                log.warning("this model's %s has no %s part (its training data's); the "
+                            "prompt's %s not made", named, "/".join(missing), "/".join(missing))
+                return spec, plan
     log.info("the prompt's stated parts are not held (%s); decoding freely", "; ".join(why))
     return None, None
+
+
+def _without(expected, labels: list[str]):
+    """A copy of a parsed prompt (ExpectedStructure) without anything it says of ``labels``."""
+    import copy
+
+    out = copy.deepcopy(expected)
+    for lab in labels:
+        for facts in (out.counts, out.min_counts, out.joint_types, out.spatial):
+            facts.pop(lab, None)
+    return out
