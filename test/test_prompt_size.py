@@ -42,7 +42,7 @@ def test_a_microwave_has_a_microwaves_size_unless_the_prompt_says_otherwise():
     assert with_usual_size("an oven with two racks", "Oven", {}) == {}
 
 
-def test_a_microwave_gets_its_control_column_beside_the_door_unless_sides_are_stated():
+def test_a_microwave_gets_its_control_column_beside_the_door_unless_sides_say_otherwise():
     said = parse_prompt("a microwave with two knobs").spatial
     usual = with_usual_layout("a microwave with two knobs", "Oven", said)
     assert usual["door"] == {"hinge": ["left"], "opens": ["sideways"], "hpos": ["left"]}
@@ -50,9 +50,17 @@ def test_a_microwave_gets_its_control_column_beside_the_door_unless_sides_are_st
     assert usual["button"] == {"hpos": ["right"], "layout": "column", "below": ["knob"]}
     assert said == parse_prompt("a microwave with two knobs").spatial    # not changed in place
     for text in ("a microwave with its door hinged on the right",
-                 "a microwave with a row of knobs", "an oven with two knobs"):
+                 "a microwave with a row of knobs", "an oven with two knobs",
+                 "a microwave with a keypad on the left"):
         spatial = parse_prompt(text).spatial
         assert with_usual_layout(text, "Oven", spatial) == spatial
+    # a side stated as usual: the controls it does not name join the column (the knobs
+    # of "a microwave with a keypad on the right" had stayed above the door, a third wide)
+    text = "a microwave with a keypad on the right"
+    usual = with_usual_layout(text, "Oven", parse_prompt(text).spatial)
+    assert usual["button"] == {"hpos": ["right"], "layout": "column", "below": ["knob"]}
+    assert usual["knob"] == {"hpos": ["right"], "layout": "column"}
+    assert usual["door"]["hpos"] == ["left"]
 
 
 def test_everyday_names_keep_the_body_sizes_the_data_gives_them():

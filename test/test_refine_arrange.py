@@ -601,6 +601,25 @@ def test_drawers_stated_on_the_right_are_a_column_in_the_right_band():
     assert all(part_position(obj, i)[0] == "right" for i in (1, 2, 3))
 
 
+def test_a_column_of_knobs_decoded_overlapping_gets_room_for_each():
+    """"a microwave with a keypad on the right" (seed 3): two 13 mm knobs decoded 6 mm apart,
+    laid out as a column over the span they covered, still overlapped (43 %: not sim-ready).
+    A control's cell holds the control with GAP either side."""
+    from model.refine.arrange import _lay_out
+    from model.refine.layout import GAP
+
+    def knob(n, z):
+        return _part(f"knob_{n}", "knob", 0, (0.013, 0.013, 0.013), (0.197, 0.107, z),
+                     Joint(JointType.CONTINUOUS, (0.19, 0.107, z), (1, 0, 0)))
+    obj = ArticulatedObject(category="Oven", name="m", parts=[
+        _part("body_0", "body", -1, (0.38, 0.5, 0.3), (0, 0, 0.15)), knob(0, 0.283),
+        knob(1, 0.289)])
+    assert _lay_out(obj, [1, 2], [1, 1])
+    (a, b) = sorted(obj.parts[i].bbox_center[2] for i in (1, 2))
+    assert b - a >= 0.013 + GAP - 1e-9
+    assert all(np.allclose(obj.parts[i].bbox_size, 0.013) for i in (1, 2))
+
+
 def _doors_under_drawers():
     """"a door on the left and a door on the right and two drawers in the middle" as decoded
     (seed 2): the two doors 22 x 6 cm slivers under a stack of two full-width drawers."""

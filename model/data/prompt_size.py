@@ -339,19 +339,24 @@ NAMED_LAYOUTS: dict[str, list[tuple[tuple[str, ...], str | None, dict]]] = {
 
 def with_usual_layout(text: str, category: str | None, spatial: dict | None) -> dict | None:
     """``spatial`` (label -> facts) with the usual arrangement of an everyday name in ``text``
-    (``NAMED_LAYOUTS``) where the door hangs as usual and nothing about the sides is stated:
-    what generation holds ("a microwave" gets its control column beside the door). Not a
-    stated fact: the alignment metric checks the prompt's facts only."""
+    (``NAMED_LAYOUTS``) where the door hangs as usual, no arrangement is stated and every
+    stated side is the usual one (a stated fact is kept, the usual ones fill in the rest):
+    what generation holds ("a microwave" gets its control column beside the
+    door; "a microwave with a keypad on the right" its knobs in it too). Not a stated fact:
+    the alignment metric checks the prompt's facts only."""
     for names, hinge, usual in NAMED_LAYOUTS.get(category or "", []):
         if not _named(text, names):
             continue
         facts = spatial or {}
         if (hinge is not None and (facts.get("door") or {}).get("hinge") != [hinge]) or any(
-                f.get("hpos") or f.keys() & ARRANGEMENT_KEYS for f in facts.values()):
+                f.keys() & ARRANGEMENT_KEYS or (f.get("hpos") and f.get("hpos") != (
+                    usual.get(lab) or {}).get("hpos")) for lab, f in facts.items()):
             return spatial
         out = {lab: dict(f) for lab, f in facts.items()}
-        for lab, f in usual.items():
-            out.setdefault(lab, {}).update(f)
+        for lab, f in usual.items():      # sides stated as usual ("a keypad on the right"):
+            mine = out.setdefault(lab, {})            # the rest joins them (its knobs had
+            for key, value in f.items():              # narrowed the door to a third)
+                mine.setdefault(key, value)
         return out
     return spatial
 

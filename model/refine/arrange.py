@@ -650,11 +650,11 @@ def _lay_out(obj: ArticulatedObject, group: list[int], per_row: list[int],
     lo, hi = lo - (gap or 0.0) / 2, hi + (gap or 0.0) / 2
     own = np.median([obj.parts[i].bbox_size for i in group], axis=0)   # controls keep theirs
     if all(obj.parts[i].label in ON_FACE for i in group):
-        # a control's cell holds the thinnest box a part keeps with GAP either side: two
-        # 5 mm buttons decoded touching get room (the rectangle grows about its middle);
-        # larger controls shrink into their cells as before
+        # a control's cell holds the control (at least the thinnest box a part keeps) with
+        # GAP either side: two 5 mm buttons decoded touching get room, as do two 13 mm
+        # knobs decoded 6 mm apart (the rectangle grows about its middle)
         for ax, n in ((H, max(per_row)), (V, len(per_row))):
-            need = (MIN_SIDE + 2 * GAP) * n
+            need = (max(MIN_SIDE, float(own[ax])) + 2 * GAP) * n
             if hi[ax] - lo[ax] < need:
                 mid = (lo[ax] + hi[ax]) / 2
                 lo[ax], hi[ax] = mid - need / 2, mid + need / 2
