@@ -105,6 +105,21 @@ def shipped():
     return Generator.load(GenerationConfig())
 
 
+def test_more_parts_than_their_hosts_hold_are_cut_to_fit(shipped):
+    """"a safe with 24 buttons": held at 16 buttons (max_children) plus the network's dial on
+    one door, decoding ended a button short and raised. Parts hung on other parts are cut
+    until their hosts hold them, the ones the prompt does not count first."""
+    e = parse_prompt("a safe with 24 buttons")
+    s = structure_for(e, "Safe", _all_labels("Safe"), open_counts={"dial": 1, "door": 1},
+                      clamp=16)
+    assert s["button"] == {"count": 16} and s["dial"] == {"count": 0}
+    s = structure_for(parse_prompt("a safe with 15 buttons and 2 dials"), "Safe",
+                      _all_labels("Safe"), open_counts={"door": 1}, clamp=16)
+    assert s["button"] == {"count": 14} and s["dial"] == {"count": 2}
+    trees, *_ = shipped.decode_trees("a safe with 24 buttons", seed=0, samples=2)
+    assert all(Counter(t.labels)["button"] == 16 for t in trees)
+
+
 def test_a_named_category_is_kept_without_the_parts_it_lacks(shipped, caplog):
     """"a bottle with three drawers" / "a jewelry box with a lid": the category has no such
     part, so no structure of it holds the prompt; decoding had then gone free and made a

@@ -146,6 +146,7 @@ def am():
     ({"dial": {"count": 1, "hinge": "left"}}, "hinge sides are supported for"),
     ({"lid": {"count": 1, "hinge": "top"}}, "hinge sides are supported for"),
     ({"drawer": 17, "category": "StorageFurniture"}, "max_children"),
+    ({"door": 1, "button": 16, "dial": 1, "category": "Safe"}, "17 parts on door parts"),
     ({"body": 2, "drawer": 1}, "body must be 1"),
     ({"drawer": 8, "door": 8, "handle": 16}, "max_nodes"),
 ])

@@ -212,6 +212,12 @@ def _check_counts(cat: str, counts: dict[str, int], max_nodes: int, max_children
         if only_body and n > max_children:
             raise ValueError(f"{n} {lab} parts on the body: at most max_children="
                              f"{max_children} children per part")
+    for hosts in {grammar[lab][0] for lab in counts} - {(), _BODY}:   # a safe's door's keys
+        on = sum(n for lab, n in counts.items() if grammar[lab][0] == hosts)
+        room = max_children * sum(counts.get(h, 0) for h in hosts)
+        if on > room:
+            raise ValueError(f"{on} parts on {' or '.join(hosts)} parts: at most "
+                             f"max_children={max_children} children per part")
     on_body = sum(n for lab, n in counts.items() if grammar[lab][0] == _BODY)
     if on_body > max_children:
         raise ValueError(f"{on_body} parts on the body: at most max_children={max_children} "

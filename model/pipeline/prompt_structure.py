@@ -120,7 +120,25 @@ def structure_for(expected, category: str, labels: Iterable[str],
         hosts = grammar[lab][0] if lab in have else ()
         if n > 0 and len(hosts) == 1 and hosts[0] != "body" and out.get(hosts[0]) == "auto":
             out[hosts[0]] = {"count": max(1, int(expected.min_counts.get(hosts[0], 1)))}
+    if clamp:
+        _within_hosts(out, grammar, set(counts), clamp)
     return out
+
+
+def _within_hosts(out: dict, grammar: dict, stated: set, most: int) -> None:
+    """Exact counts of parts that hang on other parts (a safe's buttons and dial on its door)
+    cut until the hosts hold them, ``most`` each: the labels the prompt does not count
+    first, then the largest ("a safe with 24 buttons": 16 held buttons and the network's
+    dial on one door had ended decoding a button short)."""
+    def exact(lab: str) -> int:
+        req = out.get(lab)
+        return int(req["count"]) if isinstance(req, dict) and req.get("count") != "auto" else 0
+    for hosts in {grammar[lab][0] for lab in out if lab in grammar} - {(), ("body",)}:
+        labs = [lab for lab in out if lab in grammar and grammar[lab][0] == hosts]
+        room = most * sum(exact(h) for h in hosts)
+        while sum(exact(lab) for lab in labs) > room:
+            lab = max(labs, key=lambda x: (exact(x) > 0 and x not in stated, exact(x)))
+            out[lab]["count"] = exact(lab) - 1
 
 
 def _own_label(category: str, lab: str, have) -> str:
