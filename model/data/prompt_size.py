@@ -341,9 +341,9 @@ def with_usual_layout(text: str, category: str | None, spatial: dict | None) -> 
     """``spatial`` (label -> facts) with the usual arrangement of an everyday name in ``text``
     (``NAMED_LAYOUTS``) where the door hangs as usual, no arrangement is stated and every
     stated side is the usual one (a stated fact is kept, the usual ones fill in the rest):
-    what generation holds ("a microwave" gets its control column beside the
-    door; "a microwave with a keypad on the right" its knobs in it too). Not a stated fact:
-    the alignment metric checks the prompt's facts only."""
+    what generation holds ("a microwave" gets its control column beside the door; "a
+    microwave with a keypad on the right" its knobs in it too). Not a stated fact: the
+    alignment metric checks the prompt's facts only."""
     for names, hinge, usual in NAMED_LAYOUTS.get(category or "", []):
         if not _named(text, names):
             continue

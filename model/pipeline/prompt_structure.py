@@ -51,8 +51,10 @@ def structure_for(expected, category: str, labels: Iterable[str],
     least a stated lower bound such as "drawers"), or ``"auto"`` without it (a stated lower
     bound is then the count: "a keypad" is at least two buttons); a label every training
     object of the category has (``STRUCTURE_REQUIRED``: an oven's door) at least one.
-    Handles stay ``"auto"``: they follow their doors and drawers. ``clamp`` (> 0): stated counts above a
-    label's training maximum, or above ``clamp``, are held at the smaller of the two.
+    Handles stay ``"auto"``: they follow their doors and drawers. ``clamp`` (> 0): stated
+    counts above a label's training maximum, or above ``clamp``, are held at the smaller of
+    the two, and parts hung on other parts are cut until their hosts hold them
+    (``_within_hosts``).
     """
     from model.articulation.structure_control import (HINGED_LABELS, STRUCTURE_EXCLUSIVE,
                                                       STRUCTURE_GRAMMAR, STRUCTURE_REQUIRED)
@@ -224,9 +226,10 @@ def resolve_prompt_structure(decoder, expected, categories: list[str], *, max_no
     """The first of ``categories`` (in order of preference) whose structure for the parsed
     prompt this decoder can produce -> (structure dict, StructurePlan); where none can and the
     first is the category the prompt names, that category's structure without the parts it
-    lacks (with a warning); else (None, None) (the prompt then decodes freely). ``own_reading``: the network's own decoding of the
-    prompt (a DecodedTree); the parts the prompt leaves open keep its counts where its
-    category is the one held, else they are ``"auto"``."""
+    lacks (with a warning); else (None, None) (the prompt then decodes freely).
+    ``own_reading``: the network's own decoding of the prompt (a DecodedTree); the parts the
+    prompt leaves open keep its counts where its category is the one held, else they are
+    ``"auto"``."""
     labels_of: dict[str, set] = {}
     for cat, lab in zip(decoder.table_categories, decoder.table_labels):
         labels_of.setdefault(cat, set()).add(lab)

@@ -693,5 +693,6 @@ def _merged_closed(mesh) -> bool:
     return bool(m.is_watertight)
 
 
-__all__ = ["revolved_sweep", "vessel_collision", "add_runners", "round_collision", "close_fronts", "drop_floaters", "simplify_to_budget", "first_step", "carve_parents", "carve_collision", "shrink_limits",
-           "swept_hull", "manifolds_of", "store"]
+__all__ = ["revolved_sweep", "vessel_collision", "add_runners", "round_collision", "close_fronts",
+           "drop_floaters", "simplify_to_budget", "first_step", "carve_parents",
+           "carve_collision", "shrink_limits", "swept_hull", "manifolds_of", "store"]
