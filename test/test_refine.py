@@ -833,6 +833,45 @@ def test_a_runner_that_would_float_becomes_a_ledge_between_the_side_walls():
     assert float(mans[1].min_gap(mans[0], 0.01)) <= 1e-6
 
 
+def test_a_top_loaders_controls_sit_on_its_console_front():
+    """"a top loader with a lid and five buttons" (seeds 0-2): the network decoded the
+    buttons and dial at the console's front (x/D -0.25 to -0.44), the layout put them on the
+    body's back face, facing the wall. They move forward to where the body's mesh (a 10 cm
+    console along the back of the top) ends in front of them: the dial's back on that face,
+    the button straddling it, pressing backwards. A front loader's controls stay."""
+    from model.core import meshops
+    from model.refine.meshes import seat_console_controls
+
+    def washer(lid=True):
+        parts = [_part("body_0", "body", -1, (0.52, 0.6, 0.98), (0, 0, 0.49)),
+                 _part("dial_0", "dial", 0, (0.03, 0.05, 0.05), (-0.275, -0.2, 0.93),
+                       Joint(JointType.CONTINUOUS, (-0.26, -0.2, 0.93), (-1, 0, 0))),
+                 _part("button_0", "button", 0, (0.006, 0.02, 0.01), (-0.26, 0.1, 0.93),
+                       Joint(JointType.PRISMATIC, (-0.26, 0.1, 0.93), (1, 0, 0),
+                             t_range=(0, 0.003)))]
+        if lid:
+            parts.append(_part("lid_0", "lid", 0, (0.32, 0.56, 0.025), (0.09, 0, 0.895),
+                               Joint(JointType.REVOLUTE, (-0.07, 0, 0.883), (0, -1, 0),
+                                     r_range=(0, 1.4))))
+        return ArticulatedObject(category="WashingMachine", name="w", parts=parts)
+    body = meshops.box((0.52, 0.6, 0.88), (0, 0, 0.44)) + meshops.box((0.1, 0.6, 0.1),
+                                                                        (-0.21, 0, 0.93))
+    obj = washer()
+    mans = {0: body, 1: meshops.box((0.03, 0.05, 0.05), (-0.275, -0.2, 0.93)),
+            2: meshops.box((0.006, 0.02, 0.01), (-0.26, 0.1, 0.93))}
+    assert seat_console_controls(obj, mans) == ["dial_0", "button_0"]
+    dial, button = obj.parts[1], obj.parts[2]
+    assert np.isclose(dial.bbox_center[0] - dial.bbox_size[0] / 2, -0.16, atol=1e-6)
+    assert np.isclose(button.bbox_center[0], -0.16, atol=1e-6)
+    assert np.allclose(dial.joint.axis, (1, 0, 0)) and np.allclose(button.joint.axis, (-1, 0, 0))
+    assert np.isclose(np.asarray(mans[1].bounding_box())[0], -0.16, atol=1e-6)
+    assert np.isclose(dial.joint.origin[0], -0.13) and np.isclose(button.joint.origin[0], -0.16)
+    front = washer(lid=False)
+    mans = {0: body, 1: meshops.box((0.03, 0.05, 0.05), (-0.275, -0.2, 0.93)),
+            2: meshops.box((0.006, 0.02, 0.01), (-0.26, 0.1, 0.93))}
+    assert seat_console_controls(front, mans) == []
+
+
 def test_knobs_over_an_open_front_get_a_panel_behind_them():
     """A toaster oven: its door on the left, two knobs on the right where the carcass is open.
     The knobs get a plate of the body behind them, from the door's edge to the body's right

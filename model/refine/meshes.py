@@ -338,6 +338,54 @@ def settle_onto_parents(obj: ArticulatedObject, mans: dict, gap: float = SETTLE_
     return moved
 
 
+CONSOLE_REACH = (0.02, 0.45)   # of the body's depth: where a console's front may lie, from
+                               # its back (the data's consoles: 8-14 cm of 50-65 cm)
+
+
+def seat_console_controls(obj: ArticulatedObject, mans: dict) -> list[str]:
+    """A top-loading washer's dials and buttons sit on the front of its console, the block
+    along the back of its top (every top loader of the data), which lies inside the body's
+    box: the network decodes them there, but the layout puts each control on a face of its
+    parent's box, so they ended up on the body's back face, facing the wall. Each dial or
+    button of the root on its back face above the lid's hinge moves forward to where a ray
+    from behind the body through its centre leaves the body's mesh, if that is within
+    ``CONSOLE_REACH`` of the depth and behind the lid: a dial with its back on that face, a
+    button straddling it, both facing the front (a button pressing backwards). Runs before
+    carving (the buttons' pockets are cut into the console). Returns the parts moved."""
+    import trimesh
+
+    from .layout import _lohi, _move_subtree, face_of
+    lids = [i for i, p in enumerate(obj.parts) if p.label == "lid" and p.parent == 0
+            and face_of(obj, i) == (2, 1.0)]
+    if obj.category != "WashingMachine" or not lids or 0 not in mans:
+        return []
+    body = meshops.to_trimesh(mans[0])
+    blo, bhi = np.asarray(mans[0].bounding_box()).reshape(2, 3)
+    depth = bhi[0] - blo[0]
+    lid_lo, _ = _lohi(obj.parts[lids[0]])
+    moved = []
+    for i, p in enumerate(obj.parts):
+        if p.parent != 0 or p.label not in ("dial", "button") or i not in mans \
+                or face_of(obj, i) != (0, -1.0) or p.bbox_center[2] < lid_lo[2]:
+            continue
+        lo, hi = _lohi(p)
+        start = [blo[0] - 0.01, p.bbox_center[1], p.bbox_center[2]]
+        hits, _, _ = trimesh.ray.ray_triangle.RayMeshIntersector(body).intersects_location(
+            [start], [[1.0, 0.0, 0.0]])
+        xs = np.sort(hits[:, 0]) if len(hits) else np.zeros(0)
+        front = next((float(x) for x in xs[1:2]), None)     # where the ray leaves the mesh
+        if front is None or not (blo[0] + CONSOLE_REACH[0] * depth <= front
+                                 <= min(blo[0] + CONSOLE_REACH[1] * depth, lid_lo[0])):
+            continue
+        target = front - (hi[0] - lo[0]) / 2 if p.label == "button" else front
+        move = np.array([target - lo[0], 0.0, 0.0])
+        mans[i] = mans[i].translate(tuple(move))
+        _move_subtree(obj, i, move)
+        p.joint.axis = np.array([-1.0, 0.0, 0.0] if p.label == "button" else [1.0, 0.0, 0.0])
+        moved.append(p.name)
+    return moved
+
+
 NECK_GAP = 0.003   # m: a bottle lid's hinge line this much further from its body's mesh than
                    # the lid is thick is off the neck
 RIM_DEPTH = 0.005  # m: the body's mesh this far below the lid is the rim its lid covers
@@ -694,5 +742,6 @@ def _merged_closed(mesh) -> bool:
 
 
 __all__ = ["revolved_sweep", "vessel_collision", "add_runners", "round_collision", "close_fronts",
+           "seat_console_controls",
            "drop_floaters", "simplify_to_budget", "first_step", "carve_parents",
            "carve_collision", "shrink_limits", "swept_hull", "manifolds_of", "store"]
