@@ -427,6 +427,68 @@ def _corner_oven() -> ArticulatedObject:
     ])
 
 
+def _dishwasher(door_size, door_centre, knobs) -> ArticulatedObject:
+    """A decoded-like dishwasher (an oven whose door drops down): its door with a handle,
+    and knobs on the front at (y, z, side)."""
+    x = 0.30
+    return ArticulatedObject(category="Oven", name="dishwasher", parts=[
+        _part("body_0", "body", -1, (0.60, 0.52, 0.85), (0, 0, 0.425)),
+        _part("door_0", "door", 0, door_size, door_centre,
+              Joint(JointType.REVOLUTE, (x, 0.0, door_centre[2] - door_size[2] / 2),
+                    (0, 1, 0), r_range=(0, 1.5))),
+        _part("handle_0", "handle", 1, (0.011, 0.045, 0.006),
+              (door_centre[0] + door_size[0] / 2 + 0.003, 0.0, door_centre[2]))] + [
+        _part(f"knob_{n}", "knob", 0, (0.04, side, side), (x + 0.02, y, z),
+              Joint(JointType.CONTINUOUS, (x, y, z), (1, 0, 0)))
+        for n, (y, z, side) in enumerate(knobs)])
+
+
+@pytest.mark.parametrize("door_size, door_centre, knobs", [
+    # "a dishwasher", seed 0: a small door among a column of knobs down the middle (the cuts
+    # left it a 1.4 cm strip) and a 6 mm knob
+    ((0.03, 0.09, 0.06), (0.315, 0.0, 0.63), [(0.0, 0.69, 0.07), (0.0, 0.797, 0.07),
+                                              (0.0, 0.604, 0.006)]),
+    # "a built-in dishwasher with a control panel on top", seed 0: a knob column above a door
+    # a third of the front tall
+    ((0.04, 0.54, 0.37), (0.32, 0.0, 0.21), [(0.02, 0.75, 0.06), (-0.02, 0.67, 0.08),
+                                             (0.0, 0.56, 0.08), (0.01, 0.46, 0.08)])])
+def test_an_oven_door_blocked_by_its_controls_gets_the_datas_front(door_size, door_centre,
+                                                                    knobs):
+    """The controls go into one row on a panel at the top, left to right, as every oven of
+    the data has them; the door fills the front below it, its handle under its top edge."""
+    from model.refine.siblings import HANDLE_DROP, PANEL_TALL
+    obj = _dishwasher(door_size, door_centre, knobs)
+    before = _structure(obj)
+    rep = refine_layout(obj)
+    assert rep["oven_panel"] == 1 and _structure(obj) == before
+    door, handle, controls = obj.parts[1], obj.parts[2], obj.parts[3:]
+    top = door.bbox_center[2] + door.bbox_size[2] / 2
+    assert door.bbox_size[2] > 0.6 * 0.85 and door.bbox_size[1] > 0.8 * 0.52
+    assert 0.85 - top <= PANEL_TALL[1] + 0.01
+    assert np.ptp([c.bbox_center[2] for c in controls]) < 1e-6        # one row
+    assert all(c.bbox_center[2] - c.bbox_size[2] / 2 > top for c in controls)
+    ys = sorted(c.bbox_center[1] for c in controls)
+    assert min(np.diff(ys)) > 0.1                                       # spread across
+    assert min(c.bbox_size[1] for c in controls) > 0.04                 # no speck left
+    assert not any(_boxes_overlap(door, c) for c in controls)
+    assert handle.bbox_center[2] == pytest.approx(top - HANDLE_DROP, abs=0.005)
+    assert abs(door.joint.origin[2] - (top - door.bbox_size[2])) < 1e-6   # drops down
+
+
+def test_an_oven_door_decoded_on_the_top_face_turns_onto_the_front():
+    """"a built-in dishwasher with a control panel on top", seed 4: the door came out as a
+    54 x 54 cm lid on the top face; it turns onto the front, still dropping down."""
+    obj = _dishwasher((0.54, 0.54, 0.05), (0.0, 0.0, 0.85), [(0.05, 0.77, 0.06),
+                                                              (-0.06, 0.77, 0.06)])
+    before = _structure(obj)
+    rep = refine_layout(obj)
+    door = obj.parts[1]
+    assert rep["oven_door_turned"] == 1 and _structure(obj) == before
+    assert int(np.argmin(door.bbox_size)) == 0 and door.bbox_center[0] > 0.25
+    assert door.bbox_size[2] > 0.5 and abs(door.joint.axis[1]) > 0.99
+    assert not any(_boxes_overlap(door, c) for c in obj.parts[3:])
+
+
 def test_oven_door_fills_its_front_and_stays_clear_of_the_controls():
     from model.refine.layout import CLEAR
     from model.refine.siblings import CLEAR_SWING, FILL_FRAME

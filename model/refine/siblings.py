@@ -655,6 +655,97 @@ def _fill(obj: ArticulatedObject, parent: int, members: list[int], k: int,
     return grown
 
 
+# An oven's front in the data (model/data/synth/cabinets.py, every object of the category):
+# its knobs and buttons in one row, evenly spaced across the width, on a control panel 7-14 cm
+# tall at the top; a knob at most 0.64 of the panel's height and 0.7 of its slot; the door
+# below, over the cavity's width (and a drawer under the door in tall ovens)
+PANEL_TALL = (0.07, 0.14)    # m
+PANEL_KNOB = 0.64            # a control's side at most this share of the panel's height
+SLOT_KNOB = 0.7              # ... and of its slot's width
+PANEL_SHARE = 0.25           # of the body's height, the most the panel takes
+SMALL_DOOR = 0.3             # of the face's height or width: a door this small is a sliver
+HANDLE_DROP = 0.035          # m from a drop-down door's top edge to its handle's centre
+
+
+def _oven_panel(obj: ArticulatedObject, par: int, members: list[int], k: int,
+                stated: Optional[dict] = None) -> int:
+    """An oven's front laid out as the data's are (``PANEL_TALL``) where the cuts and the
+    fill left its one door blocked by its own controls: a control still on the door's
+    rectangle of the face, a door under ``SMALL_DOOR`` of the face's height or width, or one
+    that drops down under controls spread over more than a panel's height above it (a
+    column beside it, as on a toaster oven, stays; "a dishwasher"
+    came out with its knobs in a column down the middle of its front and the door cut
+    between them to a 1.4 cm strip; a knob column above a door a third of the front tall).
+    The controls go into one row across a panel at the top, their left-to-right order kept,
+    and the door fills the face below it (down to a drawer under it). Not where the prompt
+    places the door or a control ("a microwave": its usual control column), nor on a face
+    with more than one door or with another front that is not below the door. -> 1 when laid
+    out, else 0."""
+    if obj.category != "Oven" or obj.parts[par].parent >= 0 or k == 2:
+        return 0
+    doors = [i for i in members if obj.parts[i].label == "door"]
+    ctrl = [i for i in members if obj.parts[i].label in CONTROLS]
+    if len(doors) != 1 or not ctrl or any(
+            set((stated or {}).get(lab) or {}) & (POSITION_KEYS | ARRANGEMENT_KEYS)
+            for lab in {obj.parts[i].label for i in doors + ctrl}):
+        return 0
+    door = obj.parts[doors[0]]
+    H, V = [d for d in range(3) if d not in (k, 2)][0], 2
+    (dlo, dhi), (plo, phi) = _lohi(door), _lohi(obj.parts[par])
+    others = [i for i in members if obj.parts[i].label in FRONTS and i != doors[0]]
+    if any(obj.parts[i].bbox_center[V] >= door.bbox_center[V] for i in others):
+        return 0
+    boxes = [_lohi(obj.parts[i]) for i in ctrl]
+    on_door = any(all(lo[d] < dhi[d] and dlo[d] < hi[d] for d in (H, V)) for lo, hi in boxes)
+    small = (dhi[V] - dlo[V] < SMALL_DOOR * (phi[V] - plo[V])
+             or dhi[H] - dlo[H] < SMALL_DOOR * (phi[H] - plo[H]))
+    drops = door.joint.type.rotates and abs(door.joint.axis[V]) < 0.9
+    over = [(lo, hi) for lo, hi in boxes if lo[V] >= dhi[V] - 1e-6]   # not a side column
+    rows = bool(over) and max(hi[V] for _, hi in over) - min(lo[V] for lo, _ in over) \
+        > PANEL_TALL[1]
+    if not (on_door or small or (drops and rows)):
+        return 0
+    side = max(max(hi[d] - lo[d] for d in (H, V)) for lo, hi in boxes)
+    tall = min(float(np.clip(side / PANEL_KNOB, *PANEL_TALL)), PANEL_SHARE * (phi[V] - plo[V]))
+    width = phi[H] - plo[H]
+    slot = width / (len(ctrl) + 1)
+    cap = min(PANEL_KNOB * tall, SLOT_KNOB * slot)
+    order = sorted(ctrl, key=lambda i: (obj.parts[i].bbox_center[H],
+                                        -obj.parts[i].bbox_center[V]))
+    usual = {lab: np.median([obj.parts[i].bbox_size for i in ctrl
+                             if obj.parts[i].label == lab], axis=0)
+             for lab in {obj.parts[i].label for i in ctrl}}
+    for n, i in enumerate(order):
+        p = obj.parts[i]
+        centre, size = p.bbox_center.copy(), p.bbox_size.copy()
+        centre[H], centre[V] = plo[H] + slot * (n + 1), phi[V] - tall / 2
+        size = np.maximum(size, usual[p.label])    # a speck the cuts left: its siblings' size
+        size[H], size[V] = min(size[H], cap), min(size[V], cap)
+        if p.label in ("knob", "dial"):       # round, as the panel lets it be
+            size[H] = size[V] = min(size[H], size[V])
+        _move_subtree(obj, i, centre - p.bbox_center)
+        p.bbox_size = np.maximum(size, MIN_SIDE)
+    frame = FILL_FRAME[obj.category][0]
+    below = max((_lohi(obj.parts[i])[1][V] + GAP for i in others), default=plo[V] + frame)
+    lo, hi = dlo.copy(), dhi.copy()
+    lo[H], hi[H] = plo[H] + frame, phi[H] - frame
+    lo[V], hi[V] = below, phi[V] - tall - GAP
+    if hi[V] - lo[V] < SMALL_DOOR * (phi[V] - plo[V]):
+        return 0    # (not reached for the data's sizes: a drawer under the door is lower)
+    for c in obj.children(doors[0]):        # the door's handle keeps its place on the door,
+        q = obj.parts[c]                     # below the top edge of one that drops down (the
+        move = np.zeros(3)                   # data's: HANDLE_DROP under it)
+        for d in (H, V):
+            t = (q.bbox_center[d] - dlo[d]) / max(dhi[d] - dlo[d], 1e-9)
+            half = min(q.bbox_size[d], hi[d] - lo[d]) / 2
+            at = hi[V] - max(HANDLE_DROP, half + CLEAR) if drops and d == V \
+                else lo[d] + t * (hi[d] - lo[d])
+            move[d] = np.clip(at, lo[d] + half, hi[d] - half) - q.bbox_center[d]
+        _move_subtree(obj, c, move)
+    _set(door, lo, hi)
+    return 1
+
+
 def _beside(a: tuple, b: tuple, d: int) -> bool:
     """Whether boxes ``a`` and ``b`` ((lo, hi) each) overlap in extent along axis ``d``: a
     front grown to its height (the fill's first pass) meets sideways only the knobs, dials,
@@ -810,6 +901,9 @@ def siblings(obj: ArticulatedObject, cfg: LayoutConfig, report: dict,
             if cfg.fill and obj.category in FILL_FRAME:
                 report["filled"] = report.get("filled", 0) + _fill(obj, par, members, k,
                                                                         stated or {})
+            if cfg.fill and obj.category in RACKS:
+                report["oven_panel"] = report.get("oven_panel", 0) + _oven_panel(
+                    obj, par, members, k, stated)
             storage_front = cfg.heaps and k == 0 and obj.category == "StorageFurniture"
             if storage_front:
                 report["retiled"] = report.get("retiled", 0) + _retile(obj, members,
