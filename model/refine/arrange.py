@@ -69,8 +69,10 @@ def arrange_stated(obj: ArticulatedObject, spatial: Optional[dict]) -> list[str]
             if _bands(obj, low, high, ax, share, stack):
                 a, b = obj.parts[high[0]].label, obj.parts[low[0]].label
                 done.append(f"{a} above {b}" if ax == V else f"{b} left of {a}")
-            if ax == H and _column_beside(obj, label, facts):
-                done.append(f"{label}: a column")
+            for g in (low, high) if ax == H else ():    # drawers beside the others
+                if all(obj.parts[i].label == "drawer" for i in g) \
+                        and _column_beside(obj, "drawer", spatial.get("drawer") or {}):
+                    done.append("drawer: a column")
             for g in (low, high) if ax == V else ():
                 if _doors_in_a_row(obj, g, spatial):
                     done.append("door: a row")
@@ -195,10 +197,12 @@ def _flanked(obj: ArticulatedObject, outer: str, inner: str, spatial: dict) -> b
 
 
 def _column_beside(obj: ArticulatedObject, label: str, facts: dict) -> bool:
-    """Drawers stated on one side of the others ("a door on the left and three drawers on
-    the right") with no arrangement of their own are one column in their band, as a desk's
-    or kitchen unit's drawer pedestal is: the network's own layout mapped into the band had
-    a drawer over two side by side, one of them 13 cm wide and 50 cm tall."""
+    """Drawers banded beside the others ("a door on the left and three drawers on the
+    right", or only "three drawers and a door on the left") with no arrangement of their own
+    are one column in their band, as a desk's or kitchen unit's drawer pedestal is: the
+    network's own layout mapped into the band had a drawer over two side by side, one of
+    them 13 cm wide and 50 cm tall (the README's example: two unequal drawers, 15 and 27 cm
+    wide, over a third with 1 seed of 4)."""
     group = _front_group(obj, label, every=False)
     if label != "drawer" or group is None or len(group) < 2 \
             or _arranged(facts):
