@@ -1113,8 +1113,9 @@ def test_an_ovens_racks_span_its_cavity_at_the_datas_heights():
 def test_door_handles_go_to_the_free_edge():
     """A door hinged on its left edge (-y) with a short handle beside the hinge, and a
     microwave door hinged there too with a bar across it (decoded for a drop-down door):
-    both handles end up at the free edge, the bar turned to run along the hinge; a handle
-    the prompt places, or one that would run into a knob on the door, stays."""
+    both handles end up at the free edge, the bar turned to run along the hinge, centred on
+    the door, as is a shorter bar lying along its bottom edge; a handle the prompt places,
+    or one that would run into a knob on the door, stays."""
     from model.refine import free_edge_handles
     from model.refine.layout import HANDLE_INSET, HANDLE_LENGTH
     def door(handle_size, handle_centre):
@@ -1135,6 +1136,17 @@ def test_door_handles_go_to_the_free_edge():
     assert np.allclose(h.bbox_size, (0.03, 0.02, HANDLE_LENGTH * 0.36))    # along the hinge
     assert h.bbox_center[1] == pytest.approx(0.17 - HANDLE_INSET[0])
     assert h.bbox_center[2] + h.bbox_size[2] / 2 <= 0.38 + 1e-9            # on the door
+    assert h.bbox_center[2] == pytest.approx(0.2)                           # centred on it
+    # a 12 cm bar lying along the bottom edge on the free half ("a cabinet with four doors":
+    # a lower door's handle): turned to stand along the hinge at the free edge, centred
+    low = door((0.03, 0.12, 0.02), (0.245, 0.08, 0.04))
+    assert free_edge_handles(low) == 1
+    h = low.parts[2]
+    assert np.allclose(h.bbox_size, (0.03, 0.02, 0.12))
+    assert h.bbox_center[1] == pytest.approx(0.17 - HANDLE_INSET[0])
+    assert h.bbox_center[2] == pytest.approx(0.2)
+    knob = door((0.03, 0.03, 0.025), (0.245, 0.12, 0.04))   # not a bar: stays where it is
+    assert free_edge_handles(knob) == 0
     placed = door((0.03, 0.03, 0.12), (0.245, -0.15, 0.25))
     assert free_edge_handles(placed, {"handle": {"hpos": ["left"]}}) == 0
     blocked = door((0.03, 0.03, 0.12), (0.245, -0.15, 0.25))

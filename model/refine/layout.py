@@ -225,6 +225,9 @@ def _range_from_rest(j) -> None:
 HANDLE_INSET = (0.04, 0.15)   # the data's door handles: centred min(4 cm, 15 % of the
                               # door's width) from the free edge (model/data/synth/carcass.py)
 HANDLE_LENGTH = 0.45          # ... running along the hinge for 20-45 % of the door
+HANDLE_MIN = 0.04             # m: the data's shortest handle bar
+BAR = 2.0                     # a handle this many times longer across the swing than along
+                              # the hinge is a bar lying the wrong way
 
 
 def swing_axes(p) -> Optional[tuple[int, int, int]]:
@@ -240,9 +243,11 @@ def free_edge_handles(obj: ArticulatedObject, stated: Optional[dict] = None) -> 
     """A handle on the hinge half of a door or lid goes to the free edge, where every handle
     of the data is and where a hand (or gripper) gets leverage: its centre
     ``HANDLE_INSET`` from that edge (or its half-width plus 1 cm when wider), its height
-    kept. A bar across the swing wider than half the panel (decoded for a hinge on another
-    edge: a drop-down door's bar on a microwave door hinged at the side) is turned to run
-    along the hinge, at most ``HANDLE_LENGTH`` of the panel long, and goes there too.
+    kept. A bar across the swing (twice as long as it is along the hinge and at least
+    ``HANDLE_MIN``, or wider than half the panel: decoded for a hinge on another edge, a
+    drop-down door's bar on a microwave door hinged at the side, or along a cabinet door's
+    bottom edge) is turned to run along the hinge, at most ``HANDLE_LENGTH`` of the panel
+    long, centred on the panel along it, and goes there too.
     Handles the prompt places (``stated``) and moves that would run into another part on
     the panel are left. Run after the hinges are final. -> handles moved."""
     if (stated or {}).get("handle"):
@@ -264,18 +269,22 @@ def free_edge_handles(obj: ArticulatedObject, stated: Optional[dict] = None) -> 
             if h.label != "handle" or obj.children(c):
                 continue
             size = h.bbox_size.copy()
-            if size[u] > 0.5 * w:
-                if size[u] <= size[a]:
-                    continue
-                # a bar across the swing (decoded for the other hinge): turned to run along
-                # the hinge, HANDLE_LENGTH of the panel at most, as the data's handles do
+            if size[u] > 0.5 * w and size[u] <= size[a]:
+                continue
+            # a bar across the swing (decoded for the other hinge, or lying along a door's
+            # bottom edge): turned to run along the hinge, HANDLE_LENGTH of the panel at
+            # most, centred on the panel along it, as the data's handles are
+            turned = size[u] > 0.5 * w or (h.joint.type == JointType.FIXED
+                                           and size[u] > max(BAR * size[a], HANDLE_MIN))
+            if turned:
                 size[u], size[a] = size[a], min(size[u], HANDLE_LENGTH * p.bbox_size[a])
             elif (h.bbox_center[u] - j.origin[u]) * sign >= 0.5 * w:
                 continue
             inset = max(min(HANDLE_INSET[0], HANDLE_INSET[1] * w), size[u] / 2 + 0.01)
             centre = h.bbox_center.copy()
             centre[u] = free - sign * inset
-            centre[a] = np.clip(centre[a], lo[a] + size[a] / 2, hi[a] - size[a] / 2)
+            centre[a] = np.clip(p.bbox_center[a] if turned else centre[a],
+                                lo[a] + size[a] / 2, hi[a] - size[a] / 2)
             hlo, hhi = centre - size / 2, centre + size / 2
             if any(np.all((hlo < _lohi(obj.parts[o])[1]) & (_lohi(obj.parts[o])[0] < hhi))
                    for o in kids if o != c):
