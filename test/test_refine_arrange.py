@@ -6,7 +6,7 @@ import pytest
 from model.core import ArticulatedObject, Joint, JointType, Part
 from model.data.prompt_parse import parse_prompt
 from model.data.spatial import arrangement, part_position, spatial_summary, is_above
-from model.refine import arrange_stated, place_stated_sides, refine_layout
+from model.refine import arrange_stated, place_stated_sides, refine_layout, safe_keypads
 from model.refine.arrange import _grid
 
 
@@ -46,6 +46,7 @@ def _layout(obj, prompt):
     """What Generator.layout does with a prompt's facts."""
     facts = parse_prompt(prompt).spatial
     arrange_stated(obj, facts)
+    safe_keypads(obj, facts)
     refine_layout(obj, stated=facts)
     place_stated_sides(obj, facts)
     return obj
@@ -290,6 +291,45 @@ def test_a_keypad_is_a_block_of_square_keys():
     for ax in (1, 2):
         centres = sorted({round(float(p.bbox_center[ax]), 6) for p in keys})
         assert np.diff(centres) == pytest.approx([PITCH * side] * 2, rel=0.1)
+
+
+@pytest.mark.parametrize("n, shape", [(9, (3, 3)), (4, (2, 2)), (6, (2, 3)), (3, (1, 3))])
+def test_a_safes_buttons_no_prompt_arranges_are_a_keypad(n, shape):
+    """Buttons scattered over a safe's door (an image request, "a safe with nine buttons")
+    become a block of square keys, three to a row (two for four), as every safe of the data
+    has them; the handle across the block moves off it."""
+    from model.refine.arrange import KEY, PITCH
+    obj = _safe_door_with_keypad(handle_z=0.25)
+    rng = np.random.default_rng(n)
+    del obj.parts[2 + n:11]
+    for i in range(2, 2 + n):
+        c = np.array([0.22, rng.uniform(-0.12, 0.12), rng.uniform(0.2, 0.36)])
+        obj.parts[i].bbox_center = c
+        obj.parts[i].joint.origin = c.copy()
+    before = _structure(obj)
+    assert safe_keypads(obj) == [f"button: keypad {shape[0]} x {shape[1]}"]
+    assert _structure(obj) == before
+    keys = list(range(2, 2 + n))
+    layout, rows, cols = _grid_of(obj, keys)
+    assert (rows, cols) == shape and layout in ("grid", "row", "column")
+    side = obj.parts[2].bbox_size[1]
+    assert side <= KEY + 1e-9
+    for ax in (1, 2):
+        centres = sorted({round(float(obj.parts[i].bbox_center[ax]), 6) for i in keys})
+        assert np.diff(centres) == pytest.approx([PITCH * side] * (len(centres) - 1), rel=0.1)
+    h = obj.parts[-1]
+    lo = np.min([obj.parts[i].bbox_center - obj.parts[i].bbox_size / 2 for i in keys], 0)
+    hi = np.max([obj.parts[i].bbox_center + obj.parts[i].bbox_size / 2 for i in keys], 0)
+    hlo, hhi = h.bbox_center - h.bbox_size / 2, h.bbox_center + h.bbox_size / 2
+    assert np.any((hlo[1:] >= hi[1:] - 1e-9) | (hhi[1:] <= lo[1:] + 1e-9))
+
+
+def test_buttons_a_prompt_arranges_or_not_on_a_safe_keep_their_layout():
+    obj = _safe_door_with_keypad(handle_z=0.4)
+    assert safe_keypads(obj, {"button": {"layout": "row"}}) == []
+    assert safe_keypads(obj, {"button": {"hpos": ["left"]}}) == []
+    obj.category = "Oven"
+    assert safe_keypads(obj) == []
 
 
 def _range(knobs):

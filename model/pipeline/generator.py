@@ -291,10 +291,10 @@ class Generator:
     def _refine_layout(self, obj: ArticulatedObject, tree, report: dict) -> None:
         """The layout refinement steps of :meth:`layout`, in place."""
         from model.refine import (arrange_stated, free_edge_handles, place_stated_sides,
-                                  refine_layout)
+                                  refine_layout, safe_keypads)
         stated = tree.spatial if self.config.prompt_structure else None
-        if stated:
-            report["arranged"] = arrange_stated(obj, stated)
+        report["arranged"] = arrange_stated(obj, stated) if stated else []
+        report["arranged"] += safe_keypads(obj, stated)
         report["layout"] = refine_layout(obj, stated=stated)
         if stated:
             report["arranged"] += place_stated_sides(obj, stated)

@@ -2,6 +2,7 @@
 without changing its structure (labels, counts, joint types, parents).
 
     done = arrange_stated(obj, spatial)  # rows and columns a prompt states (arrange.py)
+    done += safe_keypads(obj, spatial)   # ... and a safe's keypad where it states none
     report = refine_layout(obj)          # boxes + joints, before meshing (layout.py)
     done = place_stated_sides(obj, spatial)   # ... and the sides it states (arrange.py)
     report = refine_meshes(obj)          # after meshing (meshes.py)
@@ -20,7 +21,7 @@ import numpy as np
 
 from model.core import ArticulatedObject, meshops
 
-from .arrange import arrange_stated, place_stated_sides
+from .arrange import arrange_stated, place_stated_sides, safe_keypads
 from .layout import LayoutConfig, face_of, free_edge_handles, refine_layout
 
 
@@ -157,4 +158,5 @@ def _back_within_budget(mans: dict, budget: int, tol: float, floaters: bool) -> 
 
 
 __all__ = ["RefineConfig", "simplify_meshes", "LayoutConfig", "arrange_stated",
-           "free_edge_handles", "place_stated_sides", "refine_layout", "refine_meshes", "face_of"]
+           "free_edge_handles", "place_stated_sides", "refine_layout", "refine_meshes", "face_of",
+           "safe_keypads"]

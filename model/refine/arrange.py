@@ -29,7 +29,7 @@ from typing import Optional
 import numpy as np
 
 from model.core import ArticulatedObject
-from model.data.expected_structure import ARRANGEMENT_KEYS
+from model.data.expected_structure import ARRANGEMENT_KEYS, POSITION_KEYS
 
 from .layout import (CLEAR, GAP, MIN_SIDE, ON_FACE, PANELS, SIDE_HINGED, _lohi, _move_subtree,
                      _union, face_of, frame_of)
@@ -83,6 +83,35 @@ def arrange_stated(obj: ArticulatedObject, spatial: Optional[dict]) -> list[str]
                 done.append(f"{label} to the {want[0]}")
     for group in grids:
         _clear_grid(obj, group, keep=set(spatial))
+    return done
+
+
+def safe_keypads(obj: ArticulatedObject, spatial: Optional[dict] = None) -> list[str]:
+    """A safe's buttons on a door are a keypad in every object of the data (rows x columns
+    of 2 x 2, 3 x 3, 4 x 3, 2 x 3 or 1 x 3, square keys 1.6 keys apart,
+    model/data/synth/cabinets.py): two or more buttons on a safe's door that the prompt
+    neither arranges nor places ("a safe with nine buttons", an image request) become such a
+    block, three keys to a row (two for four keys), the rows top to bottom and the keys left
+    to right in the network's order, about the middle of where it put them
+    (:func:`_lay_out`); handles and dials reaching into the block move off it
+    (:func:`_clear_grid`). They had come out scattered over the door or as a strip two keys
+    wide. -> what it did, e.g. ["button: keypad 3 x 3"]."""
+    facts = set((spatial or {}).get("button") or {})
+    if obj.category != "Safe" or facts & (ARRANGEMENT_KEYS | POSITION_KEYS):
+        return []
+    doors: dict[tuple, list[int]] = {}
+    for i, p in enumerate(obj.parts):
+        if p.label == "button" and p.parent >= 0 and obj.parts[p.parent].label == "door":
+            face = face_of(obj, i)
+            if face is not None and face[0] == FRONT:
+                doors.setdefault((p.parent, face), []).append(i)
+    done = []
+    for group in doors.values():
+        n = len(group)
+        per_row = _grid({"columns": 2 if n == 4 else min(n, 3)}, n)
+        if per_row is not None and _lay_out(obj, group, per_row):
+            _clear_grid(obj, group, keep=set(spatial or {}))
+            done.append(f"button: keypad {len(per_row)} x {max(per_row)}")
     return done
 
 
