@@ -463,12 +463,7 @@ def _fronts_to_one_face(obj: ArticulatedObject) -> int:
                 continue
             a = _heading(best) - _heading(f)
             c, n = np.round(np.cos(a)), np.round(np.sin(a))
-            R = np.array([[c, -n, 0.0], [n, c, 0.0], [0.0, 0.0, 1.0]])
-            for q in (obj.parts[d] for d in obj.subtree(i)):
-                q.bbox_center = centre + R @ (q.bbox_center - centre)
-                q.bbox_size = np.abs(R) @ q.bbox_size
-                q.joint.origin = centre + R @ (np.asarray(q.joint.origin, float) - centre)
-                q.joint.axis = R @ np.asarray(q.joint.axis, float)
+            _turn_subtree(obj, i, centre, np.array([[c, -n, 0.0], [n, c, 0.0], [0.0, 0.0, 1.0]]))
             turned += 1
     return turned
 
@@ -492,14 +487,20 @@ def _oven_door_to_front(obj: ArticulatedObject) -> int:
     for i, f in faces.items():
         if f is None or f[0] != 2:
             continue
-        R = np.array([[0.0, 0.0, f[1]], [0.0, 1.0, 0.0], [-f[1], 0.0, 0.0]])   # +-z -> +x
-        for q in (obj.parts[d] for d in obj.subtree(i)):
-            q.bbox_center = centre + R @ (q.bbox_center - centre)
-            q.bbox_size = np.abs(R) @ q.bbox_size
-            q.joint.origin = centre + R @ (np.asarray(q.joint.origin, float) - centre)
-            q.joint.axis = R @ np.asarray(q.joint.axis, float)
+        _turn_subtree(obj, i, centre, np.array([[0.0, 0.0, f[1]], [0.0, 1.0, 0.0],
+                                                [-f[1], 0.0, 0.0]]))      # +-z -> +x
         turned += 1
     return turned
+
+
+def _turn_subtree(obj: ArticulatedObject, i: int, centre: np.ndarray, R: np.ndarray) -> None:
+    """Part ``i`` and every part below it turned by the axis permutation ``R`` about
+    ``centre``: boxes, joint origins and axes."""
+    for q in (obj.parts[d] for d in obj.subtree(i)):
+        q.bbox_center = centre + R @ (q.bbox_center - centre)
+        q.bbox_size = np.abs(R) @ q.bbox_size
+        q.joint.origin = centre + R @ (np.asarray(q.joint.origin, float) - centre)
+        q.joint.axis = R @ np.asarray(q.joint.axis, float)
 
 
 def _heading(face: tuple[int, float]) -> float:
