@@ -673,9 +673,9 @@ def _oven_panel(obj: ArticulatedObject, par: int, members: list[int], k: int,
     fill left its one door blocked by its own controls: a control still on the door's
     rectangle of the face, a door under ``SMALL_DOOR`` of the face's height or width, or one
     that drops down under controls spread over more than a panel's height above it (a
-    column beside it, as on a toaster oven, stays; "a dishwasher"
-    came out with its knobs in a column down the middle of its front and the door cut
-    between them to a 1.4 cm strip; a knob column above a door a third of the front tall).
+    column beside it, as on a toaster oven, stays; "a dishwasher" came out with its knobs in
+    a column down the middle of its front and the door cut between them to a 1.4 cm strip,
+    or a knob column above a door a third of the front tall).
     The controls go into one row across a panel at the top, their left-to-right order kept,
     and the door fills the face below it (down to a drawer under it). Not where the prompt
     places the door or a control ("a microwave": its usual control column), nor on a face
@@ -707,6 +707,13 @@ def _oven_panel(obj: ArticulatedObject, par: int, members: list[int], k: int,
         return 0
     side = max(max(hi[d] - lo[d] for d in (H, V)) for lo, hi in boxes)
     tall = min(float(np.clip(side / PANEL_KNOB, *PANEL_TALL)), PANEL_SHARE * (phi[V] - plo[V]))
+    frame = FILL_FRAME[obj.category][0]
+    below = max((_lohi(obj.parts[i])[1][V] + GAP for i in others), default=plo[V] + frame)
+    lo, hi = dlo.copy(), dhi.copy()           # the door's new box
+    lo[H], hi[H] = plo[H] + frame, phi[H] - frame
+    lo[V], hi[V] = below, phi[V] - tall - GAP
+    if hi[V] - lo[V] < SMALL_DOOR * (phi[V] - plo[V]):
+        return 0    # (not reached for the data's sizes: a drawer under the door is lower)
     width = phi[H] - plo[H]
     slot = width / (len(ctrl) + 1)
     cap = min(PANEL_KNOB * tall, SLOT_KNOB * slot)
@@ -725,13 +732,6 @@ def _oven_panel(obj: ArticulatedObject, par: int, members: list[int], k: int,
             size[H] = size[V] = min(size[H], size[V])
         _move_subtree(obj, i, centre - p.bbox_center)
         p.bbox_size = np.maximum(size, MIN_SIDE)
-    frame = FILL_FRAME[obj.category][0]
-    below = max((_lohi(obj.parts[i])[1][V] + GAP for i in others), default=plo[V] + frame)
-    lo, hi = dlo.copy(), dhi.copy()
-    lo[H], hi[H] = plo[H] + frame, phi[H] - frame
-    lo[V], hi[V] = below, phi[V] - tall - GAP
-    if hi[V] - lo[V] < SMALL_DOOR * (phi[V] - plo[V]):
-        return 0    # (not reached for the data's sizes: a drawer under the door is lower)
     for c in obj.children(doors[0]):        # the door's handle keeps its place on the door,
         q = obj.parts[c]                     # below the top edge of one that drops down (the
         move = np.zeros(3)                   # data's: HANDLE_DROP under it)
@@ -901,7 +901,7 @@ def siblings(obj: ArticulatedObject, cfg: LayoutConfig, report: dict,
             if cfg.fill and obj.category in FILL_FRAME:
                 report["filled"] = report.get("filled", 0) + _fill(obj, par, members, k,
                                                                         stated or {})
-            if cfg.fill and obj.category in RACKS:
+            if cfg.fill:
                 report["oven_panel"] = report.get("oven_panel", 0) + _oven_panel(
                     obj, par, members, k, stated)
             storage_front = cfg.heaps and k == 0 and obj.category == "StorageFurniture"
