@@ -293,8 +293,7 @@ class Generator:
         from model.refine import (arrange_stated, free_edge_handles, place_stated_sides,
                                   refine_layout, safe_keypads)
         stated = tree.spatial if self.config.prompt_structure else None
-        report["arranged"] = arrange_stated(obj, stated) if stated else []
-        report["arranged"] += safe_keypads(obj, stated)
+        report["arranged"] = arrange_stated(obj, stated) + safe_keypads(obj, stated)
         report["layout"] = refine_layout(obj, stated=stated)
         if stated:
             report["arranged"] += place_stated_sides(obj, stated)

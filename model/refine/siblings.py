@@ -696,7 +696,7 @@ def _oven_panel(obj: ArticulatedObject, par: int, members: list[int], k: int,
     if any(obj.parts[i].bbox_center[V] >= door.bbox_center[V] for i in others):
         return 0
     boxes = [_lohi(obj.parts[i]) for i in ctrl]
-    on_door = any(all(lo[d] < dhi[d] and dlo[d] < hi[d] for d in (H, V)) for lo, hi in boxes)
+    on_door = any(_beside(box, (dlo, dhi), H) and _beside(box, (dlo, dhi), V) for box in boxes)
     small = (dhi[V] - dlo[V] < SMALL_DOOR * (phi[V] - plo[V])
              or dhi[H] - dlo[H] < SMALL_DOOR * (phi[H] - plo[H]))
     drops = door.joint.type.rotates and abs(door.joint.axis[V]) < 0.9
