@@ -23,6 +23,7 @@ from model.core import ArticulatedObject, meshops
 
 from .arrange import arrange_stated, place_stated_sides, safe_keypads
 from .layout import LayoutConfig, face_of, free_edge_handles, refine_layout
+from .revolve import revolve_vessels
 
 
 @dataclass
@@ -31,6 +32,7 @@ class RefineConfig:
     floaters: bool = True          # drop specks and enclosed voids of every part
     carve: bool = True             # parents give way where a moving child passes
     runners: bool = True           # a detached drawer gets a slab of its parent to slide on
+    revolve: bool = True           # a bottle's body and screw cap: solids of revolution
     settle: bool = True            # a lid or cap hovering over its parent's mesh comes down
     panels: bool = True            # controls with nothing behind them get a plate of it,
                                    # an oven's front is closed around its doors and drawers
@@ -55,6 +57,8 @@ def refine_meshes(obj: ArticulatedObject, config: Optional[RefineConfig] = None,
     # 15 % headroom: carving adds faces after simplifying
     mans, tol = _within_budget(obj, int(0.85 * cfg.face_budget), cfg.floaters, frozen, prepared)
     report: dict = {"simplify_tolerance": tol}
+    if cfg.revolve and not frozen:
+        report["revolved"] = revolve_vessels(obj, mans)
     if cfg.settle and not frozen:
         report["settled"] = M.settle_onto_parents(obj, mans)
         report["lids_fitted"] = M.fit_lids_to_necks(obj, mans)

@@ -368,15 +368,23 @@ def _seat_cap(obj: ArticulatedObject, i: int) -> bool:
     box is lowered onto it, a quarter of its height over the parent's top (the mesh step
     carves the neck under it), centred on the parent across the axis, and turns about its own
     centre line. A cap decoded 1.5 cm above a jar and 2 cm off its centre would float and
-    wobble. A screw rises at most ``SCREW_LIFT``. Returns whether anything changed."""
+    wobble. A screw rises at most ``SCREW_LIFT``. A cap whose axis lies across the face of
+    its parent it sits on (a bottle's screw cap decoded turning about a horizontal axis
+    tipped over the neck's edge as it opened) turns about that face's normal, outwards, as
+    the data's caps do. Returns whether anything changed."""
     p = obj.parts[i]
     if p.label != "cap" or p.parent < 0 or p.joint.type not in (JointType.SCREW,
                                                                   JointType.CONTINUOUS):
         return False
-    k = _principal(p.joint.axis)[0]
     lo, hi = _lohi(p)
     plo, phi = _lohi(obj.parts[p.parent])
     pc = (plo + phi) / 2
+    k = _principal(p.joint.axis)[0]
+    out = int(np.argmax(np.abs(p.bbox_center - pc) / np.maximum(phi - plo, 1e-9)))
+    turned = out != k      # an axis across the face it sits on: it would tip over the edge
+    if turned:
+        k = out
+        p.joint.axis = np.eye(3)[k] * (1.0 if p.bbox_center[k] >= pc[k] else -1.0)
     up = 1.0 if p.bbox_center[k] >= pc[k] else -1.0
     inner, plane = (lo[k], phi[k]) if up > 0 else (hi[k], plo[k])
     across = [d for d in range(3) if d != k]
@@ -399,7 +407,7 @@ def _seat_cap(obj: ArticulatedObject, i: int) -> bool:
         if t1 - t0 > SCREW_LIFT:
             p.joint.t_range = (t0, t0 + SCREW_LIFT)
             recentred = True
-    return moved or recentred
+    return moved or recentred or turned
 
 
 SWIVEL_WRAP = 0.002   # m: a swivel cap's plates stand this far past the stick on each side
