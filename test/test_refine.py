@@ -1290,6 +1290,28 @@ def test_a_usb_swivel_cap_wraps_its_stick():
             assert refine_layout(obj)["swivel_caps"] == 0
 
 
+def test_a_usb_cap_sliding_across_its_stick_slides_along_it():
+    """A sliding cap decoded to lift off the stick's face (axis +z) slides along the stick
+    towards its own side; one sliding along the stick already, and other categories'
+    caps, keep their axes."""
+    def usb(axis, centre_x):
+        obj = _usb((0.02, 0.017, 0.009), (centre_x, 0.0, 0.005), axis)
+        obj.parts[1].joint = Joint(JointType.PRISMATIC, (centre_x, 0, 0.005), axis,
+                                   t_range=(0, 0.009))
+        return obj
+    for x, want in ((0.02, (1, 0, 0)), (-0.02, (-1, 0, 0))):
+        obj = usb((0, 0, 1), x)
+        assert refine_layout(obj)["slide_caps"] == 1
+        assert np.allclose(obj.parts[1].joint.axis, want)
+        assert refine_layout(obj)["slide_caps"] == 0
+    along = usb((1, 0, 0), 0.02)
+    assert refine_layout(along)["slide_caps"] == 0 and np.allclose(along.parts[1].joint.axis,
+                                                                   (1, 0, 0))
+    other = usb((0, 0, 1), 0.02)
+    other.category = "Bottle"
+    assert refine_layout(other)["slide_caps"] == 0
+
+
 @pytest.mark.parametrize("label", ["lid", "cap"])
 def test_a_lid_or_cap_hovering_over_its_parents_mesh_comes_down_onto_it(label):
     """The layout put the lid on its parent's box, but the parent's mesh ends 3 cm short of

@@ -447,6 +447,24 @@ def _fit_swivel_cap(obj: ArticulatedObject, i: int) -> bool:
     return True
 
 
+def _slide_cap_along_stick(obj: ArticulatedObject, i: int) -> bool:
+    """A USB stick's sliding cap slides along the stick, off its plug end, as every slide cap
+    of the data does; one decoded sliding across the stick (a cap lifting off the stick's
+    face like a lid, 1 of ~50 sampled sticks) gets the stick's long axis, pointing from the
+    stick's centre towards the cap's. -> whether anything changed."""
+    p = obj.parts[i]
+    if obj.category != "USB" or p.label != "cap" or p.parent < 0 \
+            or p.joint.type != JointType.PRISMATIC:
+        return False
+    body = obj.parts[p.parent]
+    long = int(np.argmax(body.bbox_size))
+    if _principal(p.joint.axis)[0] == long:
+        return False
+    p.joint.axis = np.eye(3)[long] * (-1.0 if p.bbox_center[long] < body.bbox_center[long]
+                                      else 1.0)
+    return True
+
+
 def _fronts_to_one_face(obj: ArticulatedObject) -> int:
     """Storage furniture keeps its doors and drawers on one face, as every object of the data
     does: a front decoded on a side face while more of its siblings (or, on a tie, the +x
@@ -692,6 +710,7 @@ def refine_layout(obj: ArticulatedObject, config: Optional[LayoutConfig] = None,
     if cfg.attach:
         report["caps_seated"] = sum(_seat_cap(obj, i) for i in order)
         report["swivel_caps"] = sum(_fit_swivel_cap(obj, i) for i in order)
+        report["slide_caps"] = sum(_slide_cap_along_stick(obj, i) for i in order)
         report["fronts_turned"] = _fronts_to_one_face(obj)
         report["oven_door_turned"] = _oven_door_to_front(obj)
     for i in order:
