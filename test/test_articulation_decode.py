@@ -73,6 +73,25 @@ def test_decoding_respects_caps_and_gives_valid_single_root_trees(caps):
         assert all(t.num_nodes == 5 for t in trees)
 
 
+def test_free_decoding_gives_each_label_only_the_joint_types_its_category_has():
+    """An untrained joint-type head draws any type; the grammar of the data's generator
+    (a cabinet's drawer slides, its door turns, its handle is fixed, a bottle's cap screws)
+    holds every part of every tree to its label's types."""
+    from model.articulation.structure_control import STRUCTURE_GRAMMAR
+    am = _random_model(end_bias=8.0)
+    tok, mask = _cond()
+    kinds = {lab: {int(JointType.parse(j)) for j in STRUCTURE_GRAMMAR[cat][lab][1]}
+             for cat, lab in LABELS if lab != "body"}
+    seen = 0
+    for seed in range(4):
+        for t in am.decode(tok, mask, seed=seed, max_nodes=12, temperature=1.0):
+            for lab, jt in zip(t.labels[1:], t.joint_types[1:]):
+                if lab in kinds:
+                    assert int(jt) in kinds[lab], (lab, jt)
+                    seen += 1
+    assert seen > 20
+
+
 def test_decoding_stops_on_end_and_always_has_a_root():
     am = _random_model(end_bias=-30.0)     # END everywhere
     trees = am.decode(*_cond(), seed=0)

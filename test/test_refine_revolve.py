@@ -74,7 +74,8 @@ def test_a_bottles_body_and_screw_cap_are_rebuilt_about_the_caps_axis_and_nothin
     cab = example_cabinet()
     mans = manifolds_of(cab)
     before = {i: float(m.volume()) for i, m in mans.items()}
-    assert revolve_vessels(cab, mans) == [] and {i: float(m.volume()) for i, m in mans.items()} == before
+    assert revolve_vessels(cab, mans) == []
+    assert {i: float(m.volume()) for i, m in mans.items()} == before
 
 
 def test_a_screw_cap_decoded_turning_across_the_neck_turns_about_the_neck():

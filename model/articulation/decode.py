@@ -311,9 +311,22 @@ def _grow(am: "ArticulationModel", row: dict, out: dict, gen: torch.Generator, m
         if t == 0:
             jt = int(JointType.FIXED)   # the single root is fixed to the world
         else:
-            jt = _draw_choice(out["jt"][t], temperature, gen)
+            jt = _draw_choice(_grammar_joints(am, li, out["jt"][t]), temperature, gen)
             row["logp"] += float(torch.log_softmax(out["jt"][t].float(), -1)[jt])
         push_child(am, row, out, t, li, jt, depth_child)
+
+
+def _grammar_joints(am: "ArticulationModel", li: int, logits: torch.Tensor) -> torch.Tensor:
+    """Joint-type ``logits`` of a new part with label-table entry ``li``, the types its
+    category never gives that label (``STRUCTURE_GRAMMAR``: a cabinet's door only turns, a
+    drawer only slides) masked out; the logits as they are for a label the grammar lacks."""
+    kinds = STRUCTURE_GRAMMAR.get(am.table_categories[li], {}).get(am.table_labels[li])
+    if kinds is None:
+        return logits
+    allowed = [int(JointType.parse(j)) for j in kinds[1]]
+    masked = torch.full_like(logits, float("-inf"))
+    masked[allowed] = logits[allowed]
+    return masked
 
 
 def _draw_end(logit: torch.Tensor, temperature: float, gen: torch.Generator) -> bool:

@@ -3,13 +3,13 @@ profile their decoded meshes have about the cap's axis.
 
 The shape prior decodes a bottle's thin features poorly: a screw cap's 1.5-3 mm skirt comes
 out as a crown of slats with gaps between them, and the body's walls crumple (every body of
-a sweep of 32 generated bottles decoded with the same eight-fold ripple, where the data's
-bottles are 60 % round). A cap that turns on a neck is a solid of revolution about its axis,
-or it sweeps through the neck; the data's bodies are all round or regular prisms about the
-same axis. So both are rebuilt: at each height along the axis the mesh is cut, rays from the
-axis at ``RAYS`` angles give the share of angles at which each radius is inside, and the
-profile is where that share is one half (a slat-and-gap skirt whose slats cover more than
-half its circumference closes, a ripple is averaged out); the profile is revolved.
+32 generated bottles had a regular octagon's eight-fold ripple, where the data's bottles are
+60 % round). A cap that turns on a neck is a solid of revolution about its axis, or it
+sweeps through the neck; the data's bodies are all round or regular prisms about the same
+axis. So both are rebuilt: the mesh is cut at heights along the axis, rays from the axis at
+``RAYS`` angles give where each enters and leaves the cut, and the profile runs from the
+median entry to the median exit over the rays that meet the part (so a skirt of slats with
+gaps closes and a ripple is averaged out); the profile is revolved.
 """
 from __future__ import annotations
 
@@ -141,9 +141,9 @@ def _profile(V: np.ndarray, F: np.ndarray) -> tuple[list[np.ndarray], float]:
 
 
 def revolved(man, origin, axis, segments: int = SEGMENTS):
-    """``man`` (a Manifold) rebuilt as the solid of revolution of its share-``SHARE``
-    profile about the line through ``origin`` along ``axis``; None where the profile is
-    empty or its volume leaves ``KEEP`` of the decoded one."""
+    """``man`` (a Manifold) rebuilt as the solid of revolution of its median profile
+    (:func:`_profile`) about the line through ``origin`` along ``axis``; None where the
+    profile is empty or the rebuilt volume leaves ``KEEP`` of the decoded one."""
     mf = meshops._mf()
     mesh = man.to_mesh()
     R = _frame(axis)
