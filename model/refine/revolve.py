@@ -19,6 +19,8 @@ import numpy as np
 
 from model.core import ArticulatedObject, JointType, meshops
 
+from .meshes import VESSELS
+
 RAYS = 96          # angles about the axis sampled at each height
 CELL = 1 / 160     # profile grid step, as a share of the part's largest extent along or
                    # across the axis
@@ -29,7 +31,6 @@ SEGMENTS = 96      # circular segments of the revolved mesh
 SMOOTH = 0.5       # profile simplification tolerance, in grid steps
 KEEP = (0.5, 3.0)  # the rebuilt volume's range, as a share of the decoded one; outside it
                    # the decoded part is not a solid of revolution about that axis
-VESSELS = ("Bottle",)
 
 
 def _frame(axis) -> np.ndarray:
@@ -175,9 +176,9 @@ def revolved(man, origin, axis, segments: int = SEGMENTS):
 def revolve_vessels(obj: ArticulatedObject, mans: dict) -> list[str]:
     """A bottle's screw caps and the body under them become solids of revolution about the
     cap's screw axis; a body under a flip lid one about the line through the lid's centre
-    along its thinnest side. Parts with children of their own keep their meshes. Boxes,
-    joints and collision pieces are left (the pipeline refits boxes to the meshes). Returns
-    the parts rebuilt."""
+    along its thinnest side. A cap with parts of its own keeps its mesh. Boxes, joints and
+    collision pieces are left (the pipeline refits boxes to the meshes; the vessel step
+    hulls the body's collision below the cap). Returns the parts rebuilt."""
     if obj.category not in VESSELS:
         return []
     axes: dict[int, tuple[np.ndarray, np.ndarray]] = {}
