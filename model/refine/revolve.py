@@ -175,8 +175,8 @@ def revolved(man, origin, axis, segments: int = SEGMENTS):
 
 def revolve_vessels(obj: ArticulatedObject, mans: dict) -> list[str]:
     """A bottle's screw caps and the body under them become solids of revolution about the
-    cap's screw axis; a body under a flip lid one about the line through the lid's centre
-    along its thinnest side. A cap with parts of its own keeps its mesh. Boxes, joints and
+    cap's screw axis; a body under a flip lid one about the line through the body's centre
+    along the lid's thinnest side. A cap with parts of its own keeps its mesh. Boxes, joints and
     collision pieces are left (the pipeline refits boxes to the meshes; the vessel step
     hulls the body's collision below the cap). Returns the parts rebuilt."""
     if obj.category not in VESSELS:
@@ -191,7 +191,8 @@ def revolve_vessels(obj: ArticulatedObject, mans: dict) -> list[str]:
             axes.setdefault(k, line)
             axes.setdefault(p.parent, line)
         elif p.label == "lid" and p.joint.type.rotates:
-            line = (np.asarray(p.bbox_center, float), np.eye(3)[int(np.argmin(p.bbox_size))])
+            lo, hi = np.asarray(mans[p.parent].bounding_box(), dtype=np.float64).reshape(2, 3)
+            line = ((lo + hi) / 2, np.eye(3)[int(np.argmin(p.bbox_size))])
             axes.setdefault(p.parent, line)
     done = []
     for i, (o, a) in sorted(axes.items()):
