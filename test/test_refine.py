@@ -1212,6 +1212,22 @@ def test_a_hovering_screw_cap_is_seated_on_its_jar_and_centred():
     assert refine_layout(jar)["caps_seated"] == 0          # seated caps stay where they are
 
 
+def test_a_screw_cap_decoded_turning_across_the_neck_turns_about_the_neck():
+    """A bottle's cap on top of its body whose screw axis was decoded horizontal (it tipped
+    over the neck's edge as it opened) turns about the body's up axis, outwards."""
+    obj = ArticulatedObject(category="Bottle", name="tipped", parts=[
+        _part("body_0", "body", -1, (0.1, 0.1, 0.25), (0, 0, 0.125)),
+        _part("cap_0", "cap", 0, (0.054, 0.043, 0.015), (0.003, 0, 0.256),
+              Joint(JointType.SCREW, (0.003, 0, 0.256), (0, -1, 0), t_range=(0, 0.004),
+                    r_range=(0, 4.0))),
+    ])
+    assert refine_layout(obj)["caps_seated"] == 1
+    cap = obj.parts[1]
+    assert np.allclose(cap.joint.axis, (0, 0, 1))
+    assert np.allclose(cap.joint.origin[:2], cap.bbox_center[:2])
+    assert refine_layout(obj)["caps_seated"] == 0
+
+
 def test_a_seated_cap_turns_about_its_own_centre_line():
     """A cap already on its jar but with its screw axis 3 cm off its centre (its sweep would
     carve the neck away under it) keeps its place and turns about its own centre line."""

@@ -1,12 +1,11 @@
-"""Bottles as solids of revolution (model/refine/revolve.py) and screw caps turned upright."""
+"""Bottles as solids of revolution (model/refine/revolve.py)."""
 import math
 
 import numpy as np
 import pytest
 import trimesh
 
-from model.core import ArticulatedObject, Joint, JointType, Part, meshops
-from model.refine import refine_layout
+from model.core import meshops
 from model.refine.meshes import manifolds_of
 from model.refine.revolve import revolve_vessels, revolved
 
@@ -76,22 +75,3 @@ def test_a_bottles_body_and_screw_cap_are_rebuilt_about_the_caps_axis_and_nothin
     before = {i: float(m.volume()) for i, m in mans.items()}
     assert revolve_vessels(cab, mans) == []
     assert {i: float(m.volume()) for i, m in mans.items()} == before
-
-
-def test_a_screw_cap_decoded_turning_across_the_neck_turns_about_the_neck():
-    """A bottle's cap on top of its body whose screw axis was decoded horizontal (it tipped
-    over the neck's edge as it opened) turns about the body's up axis, outwards."""
-    def box_part(name, label, parent, size, centre, joint=None):
-        return Part(name=name, label=label, parent=parent, bbox_size=np.array(size, float),
-                    bbox_center=np.array(centre, float), joint=joint or Joint(JointType.FIXED))
-    obj = ArticulatedObject(category="Bottle", name="tipped", parts=[
-        box_part("body_0", "body", -1, (0.1, 0.1, 0.25), (0, 0, 0.125)),
-        box_part("cap_0", "cap", 0, (0.054, 0.043, 0.015), (0.003, 0, 0.256),
-                 Joint(JointType.SCREW, (0.003, 0, 0.256), (0, -1, 0), t_range=(0, 0.004),
-                       r_range=(0, 4.0))),
-    ])
-    assert refine_layout(obj)["caps_seated"] == 1
-    cap = obj.parts[1]
-    assert np.allclose(cap.joint.axis, (0, 0, 1))
-    assert np.allclose(cap.joint.origin[:2], cap.bbox_center[:2])
-    assert refine_layout(obj)["caps_seated"] == 0

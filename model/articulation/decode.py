@@ -321,9 +321,12 @@ def _grammar_joints(am: "ArticulationModel", li: int, logits: torch.Tensor) -> t
     category never gives that label (``STRUCTURE_GRAMMAR``: a cabinet's door only turns, a
     drawer only slides) masked out; the logits as they are for a label the grammar lacks."""
     kinds = STRUCTURE_GRAMMAR.get(am.table_categories[li], {}).get(am.table_labels[li])
-    if kinds is None:
-        return logits
-    allowed = [int(JointType.parse(j)) for j in kinds[1]]
+    return logits if kinds is None else _only(logits, kinds[1])
+
+
+def _only(logits: torch.Tensor, kinds) -> torch.Tensor:
+    """Joint-type ``logits`` with every type outside ``kinds`` (names) masked out."""
+    allowed = [int(JointType.parse(j)) for j in kinds]
     masked = torch.full_like(logits, float("-inf"))
     masked[allowed] = logits[allowed]
     return masked
@@ -520,13 +523,10 @@ def _structured_joint(row: dict, lab: str, logits: torch.Tensor, temperature: fl
     draw among the types the label takes (its log-probability added to the row's)."""
     st = row["struct"]
     sp: StructurePlan = st["plan"]
-    allowed = [int(JointType.parse(j)) for j in
-               ([sp.joints[lab]] if lab in sp.joints else STRUCTURE_GRAMMAR[st["cat"]][lab][1])]
-    if len(allowed) == 1:
-        return allowed[0]
-    masked = torch.full_like(logits, float("-inf"))
-    masked[allowed] = logits[allowed]
-    jt = _draw_choice(masked, temperature, gen)
+    kinds = [sp.joints[lab]] if lab in sp.joints else STRUCTURE_GRAMMAR[st["cat"]][lab][1]
+    if len(kinds) == 1:
+        return int(JointType.parse(kinds[0]))
+    jt = _draw_choice(_only(logits, kinds), temperature, gen)
     row["logp"] += float(torch.log_softmax(logits, -1)[jt])
     return jt
 

@@ -20,6 +20,7 @@ import numpy as np
 from model.core import ArticulatedObject, JointType, meshops
 
 from .meshes import VESSELS
+from .sweeps import _z_to
 
 RAYS = 96          # angles about the axis sampled at each height
 CELL = 1 / 160     # profile grid step, as a share of the part's largest extent along or
@@ -31,16 +32,6 @@ SEGMENTS = 96      # circular segments of the revolved mesh
 SMOOTH = 0.5       # profile simplification tolerance, in grid steps
 KEEP = (0.5, 3.0)  # the rebuilt volume's range, as a share of the decoded one; outside it
                    # the decoded part is not a solid of revolution about that axis
-
-
-def _frame(axis) -> np.ndarray:
-    """3x3 rotation whose third column is ``axis`` (normalised)."""
-    a = np.asarray(axis, dtype=np.float64)
-    a = a / max(float(np.linalg.norm(a)), 1e-12)
-    helper = np.eye(3)[int(np.argmin(np.abs(a)))]
-    u = np.cross(helper, a)
-    u /= np.linalg.norm(u)
-    return np.stack([u, np.cross(a, u), a], axis=1)
 
 
 def _sections(V: np.ndarray, F: np.ndarray, heights: np.ndarray) -> list[np.ndarray]:
@@ -147,7 +138,8 @@ def revolved(man, origin, axis, segments: int = SEGMENTS):
     profile is empty or the rebuilt volume leaves ``KEEP`` of the decoded one."""
     mf = meshops._mf()
     mesh = man.to_mesh()
-    R = _frame(axis)
+    a = np.asarray(axis, dtype=np.float64)
+    R = _z_to(a / max(float(np.linalg.norm(a)), 1e-12))        # axis frame: z along it
     o = np.asarray(origin, dtype=np.float64)
     V = (np.asarray(mesh.vert_properties, dtype=np.float64)[:, :3] - o) @ R
     F = np.asarray(mesh.tri_verts, dtype=np.int64)
@@ -163,10 +155,8 @@ def revolved(man, origin, axis, segments: int = SEGMENTS):
     cs = (cs ^ half).simplify(SMOOTH * step)
     if cs.is_empty():
         return None
-    out = mf.Manifold.revolve(cs, circular_segments=segments)
-    T = np.eye(4)
-    T[:3, :3], T[:3, 3] = R, o
-    out = out.transform(meshops.affine34(T))
+    out = mf.Manifold.revolve(cs, circular_segments=segments).transform(
+        np.hstack([R, o[:, None]]))
     vol, was = float(out.volume()), float(man.volume())
     if out.is_empty() or not KEEP[0] * was <= vol <= KEEP[1] * was:
         return None
