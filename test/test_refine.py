@@ -193,6 +193,29 @@ def test_simplification_steps_made_ahead_stop_where_the_budget_loop_stops(budget
     assert rep["faces"] <= max(budget, 2000)
 
 
+def test_a_simplification_step_that_moves_the_surface_is_not_taken():
+    """A handle decoded by the shipped model (3.3 cm deep, 600 faces): Manifold's simplify at
+    1 mm folds it to 1.4 cm deep while keeping 93 % of its volume. That step is refused and
+    the first step takes the finest tolerance that keeps its shape."""
+    from pathlib import Path
+
+    from model.core import meshops
+    from model.refine.meshes import STRAY_TOLS, _simplified, first_step, stray_share
+
+    z = np.load(Path(__file__).parent / "data" / "decoded_handle.npz")
+    part = meshops.unpack((z["v"].astype(np.float64), z["f"].astype(np.uint64)))
+    depth = np.ptp(z["v"], axis=0)
+    folded = part.simplify(0.001)
+    assert np.ptp(meshops.pack(folded)[0], axis=0)[0] < 0.5 * depth[0]
+    assert folded.volume() > 0.8 * part.volume()        # what the volume rule let through
+    assert stray_share(part, folded, STRAY_TOLS * 0.001) > 0.1
+    assert stray_share(part, part, 1e-6) == 0.0
+    assert _simplified(part, 0.001) is None
+    kept = first_step(part)
+    assert kept is not None and kept.num_tri() < part.num_tri()
+    assert np.abs(np.ptp(meshops.pack(kept)[0], axis=0) - depth).max() < 0.001
+
+
 def test_the_budget_holds_after_carving_adds_faces():
     """The first simplification leaves 15 % headroom for carving; a screw cap's sweep cut
     into a ribbed bottle body adds more than that, so refinement simplifies once more with
@@ -961,6 +984,42 @@ def test_knobs_over_an_open_front_get_a_panel_behind_them():
     assert np.allclose([lo[1], hi[1], lo[2], hi[2]], [0.1, 0.28, 0.02, 0.48])  # door to wall
     assert float((mans[0] ^ mans[1]).volume()) < 1e-9                      # not into the door
     assert add_control_panels(obj, mans) == []                            # backed now
+
+
+def test_a_washer_face_open_without_a_door_is_closed():
+    """A top loader decoded with a front loader's body: a porthole in the front and its lid
+    on top. The front gets a plate over its whole outline, less a button in the porthole;
+    the tub under the lid and a front loader's porthole behind its door stay open."""
+    from model.core import meshops
+    from model.refine.meshes import FRONT_INSET, OPEN_FACE, PANEL, close_fronts, face_cover
+
+    body = meshops.box((0.6, 0.6, 0.9), (0, 0, 0.45))
+    porthole = meshops.cylinder(0.25, 0.2, (0.25, 0, 0.4), axis="x")
+    tub = meshops.box((0.4, 0.4, 0.3), (0, 0, 0.8))
+    carcass = body - porthole - tub
+    button = _part("button_0", "button", 0, (0.02, 0.03, 0.03), (0.3, 0.1, 0.4),
+                   Joint(JointType.PRISMATIC, (0.3, 0.1, 0.4), (-1, 0, 0), t_range=(0, 0.005)))
+    top_loader = ArticulatedObject(category="WashingMachine", name="washer", parts=[
+        _part("body_0", "body", -1, (0.6, 0.6, 0.9), (0, 0, 0.45)),
+        _part("lid_0", "lid", 0, (0.42, 0.42, 0.02), (0, 0, 0.9),
+              Joint(JointType.REVOLUTE, (-0.21, 0, 0.9), (0, -1, 0), r_range=(0, 1.5))),
+        button])
+    mans = {i: meshops.box(p.bbox_size, p.bbox_center) for i, p in enumerate(top_loader.parts)}
+    mans[0] = carcass
+    assert face_cover(carcass, 0, 1, PANEL) < OPEN_FACE <= face_cover(carcass, 0, -1, PANEL)
+    assert close_fronts(top_loader, mans) == ["body_0:x+"]
+    plate = mans[0] - carcass                       # the porthole's disc, behind the face
+    slab = meshops.box((PANEL, 0.6, 0.9), (0.3 - FRONT_INSET - PANEL / 2, 0, 0.45))
+    assert float(plate.volume()) == pytest.approx(np.pi * 0.25 ** 2 * PANEL, rel=0.05)
+    assert float((plate ^ slab).volume()) == pytest.approx(float(plate.volume()), rel=1e-3)
+    assert float((plate ^ mans[2]).volume()) < 1e-9                    # not into the button
+    assert float((mans[0] ^ tub).volume()) < 1e-9                      # the tub stays open
+    front_loader = ArticulatedObject(category="WashingMachine", name="washer", parts=[
+        _part("body_0", "body", -1, (0.6, 0.6, 0.9), (0, 0, 0.45)),
+        _part("door_0", "door", 0, (0.03, 0.4, 0.4), (0.3, 0, 0.4),
+              Joint(JointType.REVOLUTE, (0.3, -0.2, 0.4), (0, 0, 1), r_range=(0, 1.5)))])
+    mans = {0: body - porthole, 1: meshops.box((0.03, 0.4, 0.4), (0.3, 0, 0.4))}
+    assert close_fronts(front_loader, mans) == []
 
 
 def test_an_oven_front_is_closed_around_its_door():

@@ -45,35 +45,84 @@ def simplify_to_budget(mans: dict, budget: int, tolerances=SIMPLIFY_STEPS,
     cost it a fifth of its volume is not taken for that part: small parts keep their shape.
     A part the first step cannot take tries the ``fine`` tolerances instead, coarsest
     first: a thin noisy panel (a 4 mm door, a 3 mm handle bar) loses half its volume at
-    1 mm yet drops from ~50k faces to ~1k at 0.2-0.4 mm."""
+    1 mm yet drops from ~50k faces to ~1k at 0.2-0.4 mm. Where the steps that keep each
+    part's surface in place (:func:`_simplified`) leave the object over budget, the budget
+    wins: the steps run again from ``mans`` without that check."""
+    out, used = _steps(mans, budget, tolerances, fine, True)
+    if budget > 0 and sum(m.num_tri() for m in out.values()) > budget:
+        out, used = _steps(mans, budget, tolerances, fine, False)
+    return out, used
+
+
+def _steps(mans: dict, budget: int, tolerances, fine, check: bool) -> tuple[dict, float]:
     out, used = mans, 0.0
     for step, tol in enumerate(tolerances):
         if budget <= 0 or sum(m.num_tri() for m in out.values()) <= budget:
             break
         nxt = {}
         for k, m in out.items():
-            s = first_step(m, tol, fine) if step == 0 else _simplified(m, tol)
+            s = first_step(m, tol, fine, check) if step == 0 else _simplified(m, tol, check)
             nxt[k] = m if s is None else s
         out, used = nxt, tol
     return out, used
 
 
-def first_step(m, tol: float = SIMPLIFY_STEPS[0], fine=FINE_STEPS):
+def first_step(m, tol: float = SIMPLIFY_STEPS[0], fine=FINE_STEPS, check: bool = True):
     """The first simplification step of one part (:func:`simplify_to_budget`): ``m`` at
-    ``tol``, else at the first of the ``fine`` tolerances that keeps it; None when none
-    does."""
-    s = _simplified(m, tol)
+    ``tol``, else at the first of the ``fine`` tolerances that keeps it; else, where each
+    of them moves the surface, at the finest one that keeps the volume (a 38k-face bar
+    handle comes out in 2k faces, not as it was); None when none does."""
+    s = _simplified(m, tol, check)
     if s is None:
-        s = next((f for f in (_simplified(m, t) for t in fine) if f is not None), None)
+        s = next((f for f in (_simplified(m, t, check) for t in fine) if f is not None), None)
+    if s is None and fine and check:
+        s = _simplified(m, fine[-1], check=False)
     return s
 
 
-def _simplified(m, tol: float):
+STRAY_SHARE = 0.01     # share of a part's surface a step may move farther than STRAY_TOLS
+STRAY_TOLS = 2.0       # tolerances
+STRAY_CHECKED = 4000   # results with more faces keep their detail and are not checked
+
+
+def _simplified(m, tol: float, check: bool = True):
     """``m`` simplified at ``tol`` (capped at 3 % of its longest side), or None when that
-    empties it or costs it a fifth of its volume."""
+    empties it, costs it a fifth of its volume or moves more than ``STRAY_SHARE`` of its
+    surface farther than ``STRAY_TOLS`` tolerances. Manifold's edge collapses can fold a
+    thin panel onto its back face (a drawer front dented 14 mm at a 4 mm step, 18 % of
+    its volume) and collapse a small handle to a few dozen faces 15 mm off its shape.
+    ``check=False`` skips that last test."""
     side = float(np.ptp(np.asarray(m.bounding_box()).reshape(2, 3), axis=0).max())
-    s = m.simplify(min(tol, 0.03 * side))
-    return s if not s.is_empty() and float(s.volume()) >= 0.8 * float(m.volume()) else None
+    t = min(tol, 0.03 * side)
+    s = m.simplify(t)
+    if s.is_empty() or float(s.volume()) < 0.8 * float(m.volume()):
+        return None
+    if not check or s.num_tri() > STRAY_CHECKED:
+        return s
+    return s if stray_share(m, s, STRAY_TOLS * t) <= STRAY_SHARE else None
+
+
+def stray_share(m, s, dist: float, n: int = 512) -> float:
+    """Share of ``n`` points spread evenly (by area, a fixed draw) over Manifold ``m``'s
+    surface that lie farther than ``dist`` from Manifold ``s``'s surface."""
+    import igl
+    v, f = meshops.pack(m)
+    sv, sf = meshops.pack(s)
+    if len(f) == 0 or len(sf) == 0:
+        return 1.0
+    rng = np.random.default_rng(0)
+    tri = v[f[rng.integers(len(f), size=8 * n)]]     # faces drawn evenly, then by area
+    area = np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+    cum = np.cumsum(area)
+    pick = np.minimum(np.searchsorted(cum, rng.random(n) * cum[-1]), len(tri) - 1)
+    r = rng.random((n, 2))
+    flip = r.sum(1) > 1
+    r[flip] = 1.0 - r[flip]
+    t = tri[pick]
+    pts = t[:, 0] + r[:, :1] * (t[:, 1] - t[:, 0]) + r[:, 1:] * (t[:, 2] - t[:, 0])
+    d2 = igl.point_mesh_squared_distance(pts, np.asarray(sv, np.float64),
+                                         np.asarray(sf, np.int64))[0]
+    return float(np.mean(d2 > dist * dist))
 
 
 def carve_parents(obj: ArticulatedObject, mans: dict) -> dict[int, object]:
@@ -509,6 +558,8 @@ def add_control_panels(obj: ArticulatedObject, mans: dict, depth: float = PANEL)
 
 
 CLOSED_FRONTS = ("Oven",)   # categories whose front is closed around its doors and drawers
+CLOSED_SIDES = ("WashingMachine",)   # categories whose side faces without a front are closed
+OPEN_FACE = 0.75            # a side face whose outer PANEL covers less of its outline is open
 FRONT_INSET = 0.001         # m: the plate stays this far inside the body's outline and face
 
 
@@ -519,11 +570,14 @@ def close_fronts(obj: ArticulatedObject, mans: dict, depth: float = PANEL) -> li
     of it leaves the cavity showing beside it. Each face of the root that holds a door or
     drawer gets a plate ``depth`` deep behind it over its outline (``FRONT_INSET`` inside),
     with an opening ``GAP`` around each door, drawer or tray of that face, less what the
-    other parts occupy. Runs after :func:`add_control_panels` and before carving (which cuts
-    the doors' sweep out of it). A plate whose union with the body would not export as a
-    closed mesh is not added. Returns the faces closed, as "<part>:<axis><sign>"."""
+    other parts occupy. A washer's side face (front, back, left, right) that holds no door
+    and whose outer ``depth`` covers less than ``OPEN_FACE`` of its outline (a top loader
+    decoded with a front loader's body: a porthole and no door) gets the plate whole. Runs
+    after :func:`add_control_panels` and before carving (which cuts the doors' sweep out of
+    it). A plate whose union with the body would not export as a closed mesh is not added.
+    Returns the faces closed, as "<part>:<axis><sign>"."""
     from .layout import FRONT_LABELS, GAP, _lohi, face_of
-    if obj.category not in CLOSED_FRONTS:
+    if obj.category not in CLOSED_FRONTS + CLOSED_SIDES:
         return []
     mf = meshops._mf()
     faces: dict[tuple, list[int]] = {}
@@ -532,6 +586,16 @@ def close_fronts(obj: ArticulatedObject, mans: dict, depth: float = PANEL) -> li
         if p.label in FRONT_LABELS and face is not None and face[0] != 2 \
                 and obj.parts[p.parent].parent < 0 and p.parent in mans:
             faces.setdefault((p.parent, *face), []).append(c)
+    if obj.category in CLOSED_SIDES:
+        faces = {}
+        root = next((i for i, p in enumerate(obj.parts) if p.parent < 0 and i in mans), None)
+        held = {face_of(obj, c) for c, p in enumerate(obj.parts)
+                if p.parent == root and p.label in FRONT_LABELS}
+        for k in (0, 1):
+            for sgn in (1, -1):
+                if root is not None and (k, sgn) not in held \
+                        and face_cover(mans[root], k, sgn, depth) < OPEN_FACE:
+                    faces[(root, k, sgn)] = []
     closed = []
     for (par, k, s), fronts in faces.items():
         plo, phi = np.asarray(mans[par].bounding_box()).reshape(2, 3)
@@ -557,6 +621,22 @@ def close_fronts(obj: ArticulatedObject, mans: dict, depth: float = PANEL) -> li
         mans[par] = body
         closed.append(f"{obj.parts[par].name}:{'xyz'[k]}{'+' if s > 0 else '-'}")
     return closed
+
+
+def face_cover(man, k: int, sgn: int, depth: float) -> float:
+    """Share of the outline of Manifold ``man``'s box face (axis ``k``, side ``sgn``) that
+    its outer ``depth`` covers, seen along the axis."""
+    lo, hi = np.asarray(man.bounding_box()).reshape(2, 3)
+    plane = hi[k] if sgn > 0 else lo[k]
+    slo, shi = lo.copy(), hi.copy()
+    slo[k], shi[k] = sorted((plane, plane - sgn * depth))
+    slab = man ^ meshops.box(shi - slo, (slo + shi) / 2)
+    if slab.is_empty():
+        return 0.0
+    if k != 2:      # look along the axis: turn it onto z
+        slab = slab.rotate((0.0, 90.0, 0.0) if k == 0 else (90.0, 0.0, 0.0))
+    a, b = [i for i in range(3) if i != k]
+    return float(slab.project().area()) / float((hi[a] - lo[a]) * (hi[b] - lo[b]))
 
 
 def round_collision(obj: ArticulatedObject, mans: dict, solid: float = 0.7) -> list[str]:
@@ -742,6 +822,6 @@ def _merged_closed(mesh) -> bool:
 
 
 __all__ = ["revolved_sweep", "vessel_collision", "add_runners", "round_collision", "close_fronts",
-           "seat_console_controls",
+           "face_cover", "seat_console_controls",
            "drop_floaters", "simplify_to_budget", "first_step", "carve_parents",
            "carve_collision", "shrink_limits", "swept_hull", "manifolds_of", "store"]
