@@ -918,6 +918,33 @@ def test_a_runner_that_would_float_becomes_a_ledge_between_the_side_walls():
     assert float(mans[1].min_gap(mans[0], 0.01)) <= 1e-6
 
 
+def test_a_runner_of_one_column_of_two_reaches_its_side_wall():
+    """Two columns of two drawers in an open carcass, 2 mm apart, 1.5 cm from the side walls:
+    a ledge from wall to wall would run through the other column, so each upper drawer's
+    runner reaches from under it to its own side wall (less the drawer 2 mm below, as the
+    runner), and the carcass stays one piece, clear of every drawer."""
+    from model.core import meshops
+    from model.refine.meshes import add_runners
+
+    def drawer(i, y, z):
+        return _part(f"drawer_{i}", "drawer", 0, (0.4, 0.25, 0.2), (0.04, y, z),
+                     Joint(JointType.PRISMATIC, (0.24, y, z), (1, 0, 0), t_range=(0, 0.3)))
+    cells = [(-0.14, 0.125), (0.14, 0.125), (-0.14, 0.327), (0.14, 0.327)]   # lower: on the floor
+    obj = ArticulatedObject(category="StorageFurniture", name="chest", parts=[
+        _part("body_0", "body", -1, (0.5, 0.6, 0.5), (0, 0, 0.25)),
+        *(drawer(i, y, z) for i, (y, z) in enumerate(cells))])
+    carcass = meshops.box((0.5, 0.6, 0.5), (0, 0, 0.25)) - meshops.box((0.48, 0.56, 0.45),
+                                                                         (0.02, 0, 0.25))
+    mans = {0: carcass, **{i + 1: meshops.box(p.bbox_size, p.bbox_center)
+                          for i, p in enumerate(obj.parts[1:])}}
+    assert add_runners(obj, mans) == ["drawer_2", "drawer_3"]
+    assert len(mans[0].decompose()) == 1
+    for i in (1, 2, 3, 4):
+        assert float((mans[0] ^ mans[i]).volume()) < 1e-9
+    for i in (3, 4):                                 # the upper drawers slide on something
+        assert float(mans[i].min_gap(mans[0], 0.01)) <= 1e-6
+
+
 def test_a_top_loaders_controls_sit_on_its_console_front():
     """"a top loader with a lid and five buttons" (seeds 0-2): the network decoded the
     buttons and dial at the console's front (x/D -0.25 to -0.44), the layout put them on the

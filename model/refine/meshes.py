@@ -318,26 +318,38 @@ def add_runners(obj: ArticulatedObject, mans: dict, max_gap: float = 0.005,
             continue
         runner = meshops.box(slab_hi - slab_lo, (slab_lo + slab_hi) / 2)
         # less what other parts hold: a door 2 mm under the drawer kept 3 mm of it
-        others = [m for i, m in mans.items() if i not in (k, par)]
+        others = {i: m for i, m in mans.items() if i not in (k, par)}
+        under = {i for i, m in others.items() if float((runner ^ m).volume()) > 1e-9}
         if others:
-            runner = mf.Manifold.batch_boolean([runner, *others], mf.OpType.Subtract)
+            runner = mf.Manifold.batch_boolean([runner, *others.values()], mf.OpType.Subtract)
             if runner.is_empty():
                 continue
         joined = mf.Manifold.batch_boolean([mans[par], runner], mf.OpType.Add)
         pieces = len(mans[par].decompose())
         if len(joined.decompose()) > pieces:
             # under the part only it floats in a hollow parent: a ledge from side wall to
-            # side wall (as an oven's rack ledges are) where that runs through no other part
+            # side wall (as an oven's rack ledges are), else from under the part to the
+            # nearer side wall (a drawer of one column of two), where that runs through no
+            # other part than the runner did (less those parts, as the runner); a runner
+            # that neither joins to the parent stays as it is
             side = [e for e in (0, 1) if e != d][0]
-            slab_lo[side], slab_hi[side] = plo[side], phi[side]
             if d != 2:       # under the part's own depth: clear of a door closing in front
                 slab_lo[d], slab_hi[d] = max(lo[d], plo[d]), min(hi[d], phi[d])
-            ledge = meshops.box(slab_hi - slab_lo, (slab_lo + slab_hi) / 2)
-            if not any(float((ledge ^ m).volume()) > 1e-9 for i, m in mans.items()
-                       if i not in (k, par)):
+            near = (plo[side], slab_hi[side]) if slab_lo[side] - plo[side] \
+                <= phi[side] - slab_hi[side] else (slab_lo[side], phi[side])
+            for span in ((plo[side], phi[side]), near):
+                slab_lo[side], slab_hi[side] = span
+                ledge = meshops.box(slab_hi - slab_lo, (slab_lo + slab_hi) / 2)
+                if any(float((ledge ^ m).volume()) > 1e-9 for i, m in others.items()
+                       if i not in under):
+                    continue
+                if under:
+                    ledge = mf.Manifold.batch_boolean([ledge, *(others[i] for i in under)],
+                                                      mf.OpType.Subtract)
                 wide = mf.Manifold.batch_boolean([mans[par], ledge], mf.OpType.Add)
                 if len(wide.decompose()) <= pieces:
                     joined = wide
+                    break
         mans[par] = joined
         added.append(p.name)
     return added
