@@ -595,11 +595,10 @@ def close_fronts(obj: ArticulatedObject, mans: dict, depth: float = PANEL) -> li
     faces: dict[tuple, list[int]] = {}
     for c, p in enumerate(obj.parts):
         face = face_of(obj, c)
-        if p.label in FRONT_LABELS and face is not None and face[0] != 2 \
-                and obj.parts[p.parent].parent < 0 and p.parent in mans:
+        if obj.category in CLOSED_FRONTS and p.label in FRONT_LABELS and face is not None \
+                and face[0] != 2 and obj.parts[p.parent].parent < 0 and p.parent in mans:
             faces.setdefault((p.parent, *face), []).append(c)
     if obj.category in CLOSED_SIDES:
-        faces = {}
         root = next((i for i, p in enumerate(obj.parts) if p.parent < 0 and i in mans), None)
         held = {face_of(obj, c) for c, p in enumerate(obj.parts)
                 if p.parent == root and p.label in FRONT_LABELS}
