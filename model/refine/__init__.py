@@ -142,9 +142,10 @@ def _within_budget(obj: ArticulatedObject, budget: int, floaters: bool, frozen: 
                                           fine=M.FINE_STEPS if level < 0 else ())
         tol = more or tol
         if level >= 0 and sum(m.num_tri() for m in mans.values()) > budget:
-            # the steps made ahead kept parts in place at the budget's cost: all steps anew
+            # the steps made ahead kept parts in place at the budget's cost: every step
+            # anew without that check (with it, they would end where these did)
             mans, tol = M.simplify_to_budget({k: r.manifold() for k, r in ready.items()},
-                                             budget)
+                                             budget, check=False)
     if floaters and tol:
         mans = {k: M.drop_floaters(m) for k, m in mans.items()}   # simplifying can split
     return mans, tol

@@ -36,7 +36,7 @@ FINE_STEPS = (0.0004, 0.0002, 0.0001)
 
 
 def simplify_to_budget(mans: dict, budget: int, tolerances=SIMPLIFY_STEPS,
-                       fine=FINE_STEPS) -> tuple[dict, float]:
+                       fine=FINE_STEPS, check: bool = True) -> tuple[dict, float]:
     """Simplify every Manifold, step by step through ``tolerances`` (m), until the total
     face count is within ``budget``; returns the meshes and the last tolerance used (0:
     untouched). Each step starts from the previous one's meshes (fast: the first step
@@ -47,9 +47,10 @@ def simplify_to_budget(mans: dict, budget: int, tolerances=SIMPLIFY_STEPS,
     first: a thin noisy panel (a 4 mm door, a 3 mm handle bar) loses half its volume at
     1 mm yet drops from ~50k faces to ~1k at 0.2-0.4 mm. Where the steps that keep each
     part's surface in place (:func:`_simplified`) leave the object over budget, the budget
-    wins: the steps run again from ``mans`` without that check."""
-    out, used = _steps(mans, budget, tolerances, fine, True)
-    if budget > 0 and sum(m.num_tri() for m in out.values()) > budget:
+    wins: the steps run again from ``mans`` without that check (``check=False``: only
+    those)."""
+    out, used = _steps(mans, budget, tolerances, fine, check)
+    if check and budget > 0 and sum(m.num_tri() for m in out.values()) > budget:
         out, used = _steps(mans, budget, tolerances, fine, False)
     return out, used
 
@@ -593,12 +594,13 @@ def close_fronts(obj: ArticulatedObject, mans: dict, depth: float = PANEL) -> li
         return []
     mf = meshops._mf()
     faces: dict[tuple, list[int]] = {}
-    for c, p in enumerate(obj.parts):
-        face = face_of(obj, c)
-        if obj.category in CLOSED_FRONTS and p.label in FRONT_LABELS and face is not None \
-                and face[0] != 2 and obj.parts[p.parent].parent < 0 and p.parent in mans:
-            faces.setdefault((p.parent, *face), []).append(c)
-    if obj.category in CLOSED_SIDES:
+    if obj.category in CLOSED_FRONTS:
+        for c, p in enumerate(obj.parts):
+            face = face_of(obj, c)
+            if p.label in FRONT_LABELS and face is not None and face[0] != 2 \
+                    and obj.parts[p.parent].parent < 0 and p.parent in mans:
+                faces.setdefault((p.parent, *face), []).append(c)
+    else:                    # CLOSED_SIDES
         root = next((i for i, p in enumerate(obj.parts) if p.parent < 0 and i in mans), None)
         held = {face_of(obj, c) for c, p in enumerate(obj.parts)
                 if p.parent == root and p.label in FRONT_LABELS}
