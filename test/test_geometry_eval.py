@@ -45,10 +45,11 @@ class OracleShape:
             tp = ev.true_part(self.parts, i)
             box, _ = ev._to_frame(tp, self.parts, i, "box")
             fn = ev._igl_sdf(box)
-            if self.sabotage:   # a bubble inside the part: a second, inner shell
-                base = fn
+            if self.sabotage:   # a bubble inside the part: a second, inner shell (meshed
+                base = fn           # without island removal, which fills enclosed voids)
                 fn = lambda x, base=base: torch.maximum(  # noqa: E731
                     base(x), 0.1 - x.norm(dim=-1))
+                kw = {**kw, "min_island": 0}
             out += mesh_sdf_batch(fn, 1, resolution, **kw)
         return out
 

@@ -109,6 +109,18 @@ def test_remove_islands_specks_and_bubbles():
     w = v.copy()
     w[1:5, 1:5, 1:5] = -0.1
     assert remove_islands(w)[1] == 1 and (remove_islands(w)[0][1:5, 1:5, 1:5] < 0).all()
+    # a void of any size inside the solid is filled (no part of the data encloses one); a
+    # cavity open to the outside is kept
+    cav = v.copy()
+    cav[10:23, 10:23, 12:21] = 0.1                                  # 13 x 13 x 9 = 1,521 vertices
+    filled, n = remove_islands(cav)
+    assert n == 2 and (filled[9:24, 9:24, 9:24] < 0).all()              # and the speck
+    assert components(marching_cubes(cav).mesh)[0] == 3                # part, void, speck
+    assert components(marching_cubes(filled).mesh)[0] == 1
+    cav[10:23, 10:23, 12:33] = 0.1                                  # the same pocket, opened at the top
+    opened, n = remove_islands(cav)
+    assert (opened[10:23, 10:23, 12:21] > 0).all() and components(marching_cubes(opened).mesh)[0] == 1
+    assert remove_islands(cav, max_vertices=0)[1] == 0
     # a part that is only a tiny island keeps it
     t = np.full((9, 9, 9), 0.1)
     t[4, 4, 4] = -0.1

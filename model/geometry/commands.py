@@ -105,8 +105,9 @@ def _eval_parser() -> argparse.ArgumentParser:
                         "here")
     p.add_argument("--worst", type=int, default=12, help="reconstructions on the worst sheet")
     p.add_argument("--min-island", type=int, default=None,
-                   help="meshing: remove sign islands of at most this many grid vertices "
-                        "(default: model.geometry.meshing.MIN_ISLAND; 0 keeps them)")
+                   help="meshing: remove inside islands of at most this many grid vertices "
+                        "and fill enclosed voids (default: model.geometry.meshing.MIN_ISLAND; "
+                        "0 keeps both)")
     p.add_argument("--diagnose", action="store_true",
                    help="instead: measure where thin walls are lost (resolution sweep, true SDF "
                         "meshed, decoder error vs distance, box vs iso frame, retrieval, "
@@ -196,8 +197,9 @@ def _bench(argv: list[str]) -> int:
     p.add_argument("--ddim-threads", type=int, default=1,
                    help="torch threads for DDIM (1, as the pipeline: model.core.runtime)")
     p.add_argument("--min-island", type=int, default=None,
-                   help="meshing: sign islands removed up to this many grid vertices "
-                        "(default: model.geometry.meshing.MIN_ISLAND; 0 keeps them)")
+                   help="meshing: inside islands removed up to this many grid vertices, "
+                        "enclosed voids filled (default: model.geometry.meshing.MIN_ISLAND; "
+                        "0 keeps both)")
     p.add_argument("--default-heap", action="store_true",
                    help="leave glibc's allocator thresholds alone (the pipeline keeps the "
                         "heap mapped: model.core.runtime.keep_heap_mapped)")
