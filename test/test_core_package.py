@@ -186,6 +186,32 @@ def test_map_jobs_gives_every_result_in_one_process_or_several():
     assert list(map_jobs(abs, [], workers=2)) == []
 
 
+def test_map_jobs_workers_run_torch_after_the_parent_did():
+    """A parent that has run a parallel torch op forks workers whose OpenMP pool has no
+    threads: a parallel op there waited forever (load_parts(workers=2) after loading a
+    model). The workers get one torch thread each."""
+    import os
+    import signal
+    code = ("import torch\n"
+            "from model.core.runtime import map_jobs\n"
+            "def job(n):\n"
+            "    a = torch.ones(300, 300)\n"
+            "    return n, torch.get_num_threads(), float((a @ a)[0, 0])\n"
+            "torch.set_num_threads(2)\n"
+            "a = torch.randn(800, 800); (a @ a).sum()\n"
+            "print(sorted(map_jobs(job, list(range(4)), workers=2, chunksize=1)))\n")
+    proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        out, err = proc.communicate(timeout=90)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.communicate()
+        raise AssertionError("map_jobs' workers hung in their first parallel torch op")
+    assert proc.returncode == 0, err
+    assert out.strip() == str([(n, 1, 300.0) for n in range(4)])
+
+
 if __name__ == "__main__":
     g = import_graph()
     for pkg in sorted(g, key=lambda p: LAYERS.index(p) if p in LAYERS else -1):

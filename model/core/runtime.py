@@ -15,6 +15,7 @@ memory.
 from __future__ import annotations
 
 import contextlib
+import sys
 from typing import Iterator
 
 _malloc_trim = None
@@ -96,12 +97,20 @@ def settle_after_load() -> None:
     gc.freeze()
 
 
+def _one_torch_thread() -> None:
+    """Pool initializer: a forked worker runs torch on one thread. Once the parent has run a
+    parallel torch op, its OpenMP pool's threads do not exist in the child, and the child's
+    first parallel op waits for them forever; the workers already share the cores."""
+    if "torch" in sys.modules:
+        sys.modules["torch"].set_num_threads(1)
+
+
 def map_jobs(fn, jobs: list, workers: int = 1, chunksize: int = 4) -> Iterator:
-    """``fn`` over ``jobs``: results in completion order from ``workers`` forked processes, or in
-    order in this process when one worker (or one job) is enough."""
+    """``fn`` over ``jobs``: results in completion order from ``workers`` forked processes (one
+    torch thread each), or in order in this process when one worker (or one job) is enough."""
     if workers > 1 and len(jobs) > 1:
         import multiprocessing as mp
-        with mp.get_context("fork").Pool(workers) as pool:
+        with mp.get_context("fork").Pool(workers, initializer=_one_torch_thread) as pool:
             yield from pool.imap_unordered(fn, jobs, chunksize=chunksize)
     else:
         yield from map(fn, jobs)
