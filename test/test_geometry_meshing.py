@@ -127,6 +127,21 @@ def test_remove_islands_specks_and_bubbles():
     assert remove_islands(t)[0][4, 4, 4] < 0
 
 
+def test_marching_cubes_keeps_the_side_of_vertices_on_the_surface():
+    """A vertex within 1e-4 of a cell of the level is moved off it (zero-area triangles) on
+    its own side: one just inside a solid made a zero-size inverted shell of its own."""
+    from model.geometry.meshing import components
+    x = torch.linspace(-1, 1, 33)
+    X, Y, Z = torch.meshgrid(x, x, x, indexing="ij")
+    v = (torch.stack([X, Y, Z]).abs().amax(0) - 0.5).numpy()        # a cube of side 1
+    cube = marching_cubes(v).mesh
+    v[16, 16, 16] = -1e-7                                            # inside, on the level
+    v[16, 16, 20] = 1e-7                                             # outside, on the level
+    m = marching_cubes(v).mesh
+    assert components(m)[0] == 2 and m.is_watertight                # the cube, the bubble
+    assert abs(m.volume - cube.volume) < 1e-6
+
+
 def _grid_sdf(v, p):
     """Nearest-vertex lookup of a 33^3 grid over [-1, 1]^3 (for meshing a hand-made field)."""
     n = v.shape[0] - 1

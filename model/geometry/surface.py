@@ -43,8 +43,12 @@ def marching_cubes(values: np.ndarray, bound: float = 1.0, level: float = 0.0) -
         return MeshResult(trimesh.Trimesh(), "full", 0)
     h = 2 * bound / n
     padded = np.pad(values.astype(np.float32), 1, constant_values=max(h, 1e-3))
-    # a surface through a grid vertex makes zero-area triangles that break watertightness
-    padded[np.abs(padded) < 1e-4 * h] = 1e-4 * h
+    # a surface through a grid vertex makes zero-area triangles that break watertightness:
+    # move such vertices off it, keeping their side (forcing them all outside turned a lone
+    # vertex just inside a wall into a zero-size, inverted 8-face shell)
+    t = 1e-4 * h
+    near = np.abs(padded) < t
+    padded[near] = np.where(padded[near] < 0, -t, t)
     verts, faces, _, _ = measure.marching_cubes(padded, level=0.0, spacing=(h, h, h),
                                                 gradient_direction="descent")
     verts = verts - (bound + h)
