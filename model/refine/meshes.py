@@ -317,12 +317,12 @@ def add_runners(obj: ArticulatedObject, mans: dict, max_gap: float = 0.005,
             slab_lo[d], slab_hi[d] = max(min(lo[d], hi[d]), plo[d]), min(max(lo[d], hi[d]), phi[d])
         if np.any(slab_hi - slab_lo <= 1e-4):
             continue
-        runner = meshops.box(slab_hi - slab_lo, (slab_lo + slab_hi) / 2)
+        box = meshops.box(slab_hi - slab_lo, (slab_lo + slab_hi) / 2)
         # less what other parts hold: a door 2 mm under the drawer kept 3 mm of it
         others = {i: m for i, m in mans.items() if i not in (k, par)}
-        under = {i for i, m in others.items() if float((runner ^ m).volume()) > 1e-9}
+        runner = box
         if others:
-            runner = mf.Manifold.batch_boolean([runner, *others.values()], mf.OpType.Subtract)
+            runner = mf.Manifold.batch_boolean([box, *others.values()], mf.OpType.Subtract)
             if runner.is_empty():
                 continue
         joined = mf.Manifold.batch_boolean([mans[par], runner], mf.OpType.Add)
@@ -333,6 +333,7 @@ def add_runners(obj: ArticulatedObject, mans: dict, max_gap: float = 0.005,
             # nearer side wall (a drawer of one column of two), where that runs through no
             # other part than the runner did (less those parts, as the runner); a runner
             # that neither joins to the parent stays as it is
+            under = {i for i, m in others.items() if float((box ^ m).volume()) > 1e-9}
             side = [e for e in (0, 1) if e != d][0]
             if d != 2:       # under the part's own depth: clear of a door closing in front
                 slab_lo[d], slab_hi[d] = max(lo[d], plo[d]), min(hi[d], phi[d])
