@@ -2,16 +2,17 @@
 # The auto-encoder stage of scripts/recipe_geometry.sh on a lent GPU machine (one command of at
 # most 10 minutes): unpack the pure-Python/extension dependencies the image lacks, rebuild a
 # train-split subset of the procedural data (the current generator) on its CPU cores
-# (scripts/device_data.py), train the small-fine auto-encoder on CUDA and leave the resumable
-# checkpoint in pieces under $OUT.
+# (scripts/device_data.py), train the PRESET (small-fine) auto-encoder on CUDA and leave the
+# resumable checkpoint in pieces under $OUT.
 #
 #   bash scripts/device_pack.sh    # here, once: .devrun/devsite.tar.xz and .devrun/train_ids.txt
 #   bash scripts/device_sdf.sh     # there (device run, carry .devrun), with $OUT set
 #
-# Settings: SYNTH_S (seconds of synthesis), STEPS, BATCH, DEADLINE_S (seconds after start by
-# which training has stopped). Back home: cat sdf_ckpt.part* > runs/.../ckpt.pt.
+# Settings: PRESET, SYNTH_S (seconds of synthesis), STEPS, BATCH, DEADLINE_S (seconds after
+# start by which training has stopped). Back home: cat sdf_ckpt.part* > runs/.../ckpt.pt.
 set -uo pipefail
 T0=$(date +%s)
+PRESET=${PRESET:-small-fine}
 SYNTH_S=${SYNTH_S:-150}; STEPS=${STEPS:-6500}; BATCH=${BATCH:-64}; DEADLINE_S=${DEADLINE_S:-550}
 W=$(nproc); DEV=${DEV:-cuda}
 left() { echo $(( T0 + DEADLINE_S - $(date +%s) )); }
@@ -35,7 +36,7 @@ python3 scripts/device_data.py .devrun/train_ids.txt /tmp/dev "$SYNTH_S" "$W" \
   | tee -a "$OUT/device.txt" || exit 6
 echo "data done at $(( $(date +%s) - T0 )) s" | tee -a "$OUT/device.txt"
 CHUNK=$(python3 -c "print(max(0.5, ($(left) - 60) / 60))")   # ~1 min for the box-frame cache
-CMD=(train sdf --data /tmp/dev/prepared --preset small-fine --out /tmp/dev/sdf --seed 0
+CMD=(train sdf --data /tmp/dev/prepared --preset "$PRESET" --out /tmp/dev/sdf --seed 0
      --threads "$W" --steps "$STEPS" --batch-size "$BATCH" --no-progress --device "$DEV"
      --chunk-minutes "$CHUNK" --resume)
 echo "artformer ${CMD[*]}" | tee -a "$OUT/device.txt"
