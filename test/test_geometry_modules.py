@@ -23,6 +23,12 @@ def test_presets_are_independent_copies_and_paper_sizes():
     assert (p.sdf.plane_res, p.sdf.plane_channels, p.sdf.z_dim) == (64, 256, 768)
     assert (p.sdf.mlp_layers, p.sdf.mlp_hidden) == (9, 512)
     assert (p.prior.n_codebooks, p.prior.codebook_size, p.prior.code_dim) == (4, 128, 32)
+    g, f = get_preset("small-grid8").sdf.validate(), get_preset("small-fine").sdf
+    assert (g.latent_res, f.validate().latent_res) == (8, 4)
+    assert (g.z_dim, g.plane_res) == (f.z_dim, f.plane_res)   # same z for the prior, same planes
+    with torch.no_grad():
+        planes = SDFAutoEncoder(g).decode_planes(torch.zeros(2, g.z_dim))
+    assert planes.shape == (2, 3, g.plane_channels, 64, 64)
     with pytest.raises(KeyError, match="unknown preset"):
         get_preset("huge")
     with pytest.raises(ValueError, match="unknown config keys"):

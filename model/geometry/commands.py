@@ -17,7 +17,8 @@ def _train_parser(kind: str) -> argparse.ArgumentParser:
                                                   "(encodes every train part with --sdf first)"))
     p.add_argument("--data", required=True, help="prepared dataset folder (with manifest.json)")
     p.add_argument("--out", required=True, help="run folder: ckpt.pt, log.jsonl")
-    p.add_argument("--preset", default="small", help="tiny | small | paper (default small)")
+    p.add_argument("--preset", default="small",
+                   help="tiny | small | small-fine | small-grid8 | paper (default small)")
     if kind == "prior":
         p.add_argument("--sdf", required=True, help="trained auto-encoder checkpoint")
         p.add_argument("--codebooks", type=int, help="number of codebooks C (preset: 4)")
