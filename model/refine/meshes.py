@@ -603,13 +603,13 @@ def close_fronts(obj: ArticulatedObject, mans: dict, depth: float = PANEL) -> li
                 faces.setdefault((p.parent, *face), []).append(c)
     else:                    # CLOSED_SIDES
         root = next((i for i, p in enumerate(obj.parts) if p.parent < 0 and i in mans), None)
-        held = {face_of(obj, c) for c, p in enumerate(obj.parts)
-                if p.parent == root and p.label in FRONT_LABELS}
-        for k in (0, 1):
-            for sgn in (1, -1):
-                if root is not None and (k, sgn) not in held \
-                        and face_cover(mans[root], k, sgn, depth) < OPEN_FACE:
-                    faces[(root, k, sgn)] = []
+        if root is not None:
+            held = {face_of(obj, c) for c, p in enumerate(obj.parts)
+                    if p.parent == root and p.label in FRONT_LABELS}
+            for k in (0, 1):
+                for sgn in (1, -1):
+                    if (k, sgn) not in held and face_cover(mans[root], k, sgn, depth) < OPEN_FACE:
+                        faces[(root, k, sgn)] = []
     closed = []
     for (par, k, s), fronts in faces.items():
         plo, phi = np.asarray(mans[par].bounding_box()).reshape(2, 3)
