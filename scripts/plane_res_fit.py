@@ -78,11 +78,9 @@ class _FirstInputs(torch.nn.Module):
         return self.layer(z[:, :self.n])
 
 
-def fit_latents(a, ae, shape, parts, idx, truth, samples, gen) -> None:
+def fit_latents(a, ae, z, parts, idx, truth, samples, gen) -> None:
     """--fit z / decoder / z+decoder / z768+decoder: latents (from the encoder's means), the
-    decoder, or both."""
-    from model.geometry.eval_metrics import encode_parts
-    z = encode_parts(shape, parts, idx, 0).float()
+    decoder, or both. ``z``: the encoder's means of the parts."""
     if a.fit.startswith("z768"):      # z widened: new inputs at 0, their weights small
         old = ae.vae.from_z
         wide = torch.nn.Linear(768, old.out_features)
@@ -104,14 +102,14 @@ def fit_latents(a, ae, shape, parts, idx, truth, samples, gen) -> None:
         for p in params:
             p.requires_grad_(True)
         groups.append({"params": params, "lr": a.lr / 10})
-    _fit(a, groups, lambda b: ae._planes(z[b]), len(idx), samples, gen, ae.cfg.sdf_clamp,
+    _fit(a, a.fit, groups, lambda b: ae._planes(z[b]), len(idx), samples, gen, ae.cfg.sdf_clamp,
          ae.decoder)
     with torch.no_grad():
         planes = ae._planes(z.detach())
     report(f"fitted {a.fit}", ae.decoder, planes, parts, idx, truth, a.mesh_res)
 
 
-def _fit(a, groups, planes_of, P, samples, gen, clamp, decoder) -> None:
+def _fit(a, label: str, groups, planes_of, P, samples, gen, clamp, decoder) -> None:
     """Adam on ``groups`` for a.steps steps: clamped L1 of ``decoder(planes_of(rows), q)``
     against the exact samples of a.batch random parts."""
     opt = torch.optim.Adam(groups)
@@ -124,18 +122,17 @@ def _fit(a, groups, planes_of, P, samples, gen, clamp, decoder) -> None:
         loss.backward()
         opt.step()
         if step % 500 == 0 or step == a.steps - 1:
-            print(f"  {a.fit}: step {step} loss {loss.item():.5f} ({time.time() - t0:.0f} s)",
+            print(f"  {label}: step {step} loss {loss.item():.5f} ({time.time() - t0:.0f} s)",
                   flush=True)
 
 
-def fit_grid(a, ae, shape, parts, idx, truth, samples, gen) -> None:
+def fit_grid(a, ae, z, parts, idx, truth, samples, gen) -> None:
     """--fit gridN: the plane generator's N x N activations free per part; the generator's
-    later layers, the plane head and the SDF MLP trained (lr / 10)."""
-    from model.geometry.eval_metrics import encode_parts
+    later layers, the plane head and the SDF MLP trained (lr / 10). ``z``: the encoder's
+    means of the parts."""
     n = int(a.fit[4:])
     cut = 4 * (int(np.log2(n // ae.cfg.latent_res)))     # 4 modules per doubling
     with torch.no_grad():
-        z = encode_parts(shape, parts, idx, 0).float()
         B, r, c = len(idx), ae.cfg.latent_res, ae.cfg.vae_channels[-1]
         h = ae.vae.from_z(z).reshape(B * 3, c, r, r)
         h = ae.vae.dec[:cut](h)
@@ -152,8 +149,8 @@ def fit_grid(a, ae, shape, parts, idx, truth, samples, gen) -> None:
         x = tail(grid[b].reshape(len(b) * 3, *grid.shape[2:]))
         return ae.plane_out(x.reshape(len(b), 3, *x.shape[1:])) + g[b][:, None, :, None, None]
     print(f"  free grids {tuple(grid.shape[2:])} per plane ({grid[0].numel()} floats per part)")
-    _fit(a, [{"params": [grid], "lr": a.lr}, {"params": params, "lr": a.lr / 10}], planes_of,
-         B, samples, gen, ae.cfg.sdf_clamp, ae.decoder)
+    _fit(a, a.fit, [{"params": [grid], "lr": a.lr}, {"params": params, "lr": a.lr / 10}],
+         planes_of, B, samples, gen, ae.cfg.sdf_clamp, ae.decoder)
     with torch.no_grad():
         planes = planes_of(torch.arange(B))
     report(f"fitted {a.fit}", ae.decoder, planes, parts, idx, truth, a.mesh_res)
@@ -202,15 +199,16 @@ def main() -> None:
     print(f"{len(idx)} {a.label} parts, {a.samples} exact samples each ({time.time() - t0:.0f} s)",
           flush=True)
     report(f"true SDF meshed at {a.mesh_res}^3", None, None, parts, idx, truth, a.mesh_res)
-    base = ae.decode_planes(encode_parts(shape, parts, idx, 0)).float()     # (P, 3, C, R0, R0)
+    z = encode_parts(shape, parts, idx, 0).float()                          # the encoder's means
+    base = ae.decode_planes(z).float()                                      # (P, 3, C, R0, R0)
     report(f"shipped decode (planes {base.shape[-1]})", ae.decoder, base, parts, idx, truth,
            a.mesh_res)
     gen = torch.Generator().manual_seed(0)
     if a.fit.startswith("grid"):
-        fit_grid(a, ae, shape, parts, idx, truth, samples, gen)
+        fit_grid(a, ae, z, parts, idx, truth, samples, gen)
         return
     if a.fit != "planes":
-        fit_latents(a, ae, shape, parts, idx, truth, samples, gen)
+        fit_latents(a, ae, z, parts, idx, truth, samples, gen)
         return
     for res in [int(r) for r in a.res.split(",")]:
         P, _, C, R0, _ = base.shape
@@ -219,10 +217,10 @@ def main() -> None:
         planes = torch.nn.Parameter(init.clone())
         decoder = type(ae.decoder)(ae.cfg)
         decoder.load_state_dict(ae.decoder.state_dict())
-        a.fit = f"planes {res}"
         groups = [{"params": [planes], "lr": a.lr},
                   {"params": decoder.parameters(), "lr": a.lr / 10}]
-        _fit(a, groups, lambda b: planes[b], P, samples, gen, ae.cfg.sdf_clamp, decoder)
+        _fit(a, f"planes {res}", groups, lambda b: planes[b], P, samples, gen, ae.cfg.sdf_clamp,
+             decoder)
         report(f"fitted planes {res}", decoder, planes.detach(), parts, idx, truth, a.mesh_res)
 
 

@@ -26,8 +26,7 @@ def test_presets_are_independent_copies_and_paper_sizes():
     g, f = get_preset("small-grid8").sdf.validate(), get_preset("small-fine").sdf
     assert (g.latent_res, f.validate().latent_res) == (8, 4)
     assert (g.z_dim, g.plane_res) == (f.z_dim, f.plane_res)   # same z for the prior, same planes
-    with torch.no_grad():
-        planes = SDFAutoEncoder(g).decode_planes(torch.zeros(2, g.z_dim))
+    planes = SDFAutoEncoder(g).decode_planes(torch.zeros(2, g.z_dim))    # inference mode
     assert planes.shape == (2, 3, g.plane_channels, 64, 64)
     with pytest.raises(KeyError, match="unknown preset"):
         get_preset("huge")
