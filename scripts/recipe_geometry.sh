@@ -8,7 +8,9 @@
 #   STAGE=sdf bash scripts/recipe_geometry.sh    # one stage: data | cache | sdf | prior | eval | export
 #
 # Settings (environment variables, defaults below): N_OBJECTS, SEED, VERSION, PRESET,
-# SDF_STEPS, PRIOR_STEPS, THREADS, BANK_PER_TEXT, CHUNK_MIN, RUNS, DEVICE. Each run folder gets
+# SDF_STEPS, PRIOR_STEPS, THREADS, BANK_PER_TEXT, CHUNK_MIN, RUNS, DEVICE, CODES_FROM,
+# CODES_SDF (CODES_FROM=model/weights/prior_small.pt: a prior the shipped text and image models
+# run with unchanged, `train prior --codes-from`; docs/geometry.md). Each run folder gets
 # RECIPE.md with the command lines, seed, data version, device and wall times of every chunk.
 # DEVICE=auto trains the auto-encoder on CUDA where torch sees a GPU (a CUDA build of torch;
 # the pinned CPU wheel sees none) and records the GPU in the checkpoint; the prior stays on
@@ -30,6 +32,8 @@ PRIOR_STEPS=${PRIOR_STEPS:-20000}
 THREADS=${THREADS:-2}
 BANK_PER_TEXT=${BANK_PER_TEXT:-400}    # retrieval latents kept per label in the exported prior
 DEVICE=${DEVICE:-auto}                 # the auto-encoder's: cpu | cuda | auto
+CODES_FROM=${CODES_FROM:-}             # prior: adopt this prior's code space (e.g. the shipped
+CODES_SDF=${CODES_SDF:-model/weights/sdf_small.pt}   # model/weights/prior_small.pt) and its AE
 CHUNK_MIN=${CHUNK_MIN:-140}            # training minutes per invocation (+ <= 10 min loading: <= 2.5 h)
 RUNS=${RUNS:-runs/geometry_${NAME}}
 STAGE=${STAGE:-all}
@@ -78,7 +82,14 @@ EOF
 
 stage_sdf()   { ls "$SDF_RUN"/cache/parts_val_*.pt >/dev/null 2>&1 || stage_cache
                 train_chunks sdf "$SDF_RUN" "$SDF_STEPS" --device "$DEVICE"; }
-stage_prior() { train_chunks prior "$PRIOR_RUN" "$PRIOR_STEPS" --sdf "$SDF_RUN/ckpt.pt"; }
+stage_prior() {
+  if [ -n "$CODES_FROM" ]; then   # keep the shipped transformers: the prior reads their codes
+    train_chunks prior "$PRIOR_RUN" "$PRIOR_STEPS" --sdf "$SDF_RUN/ckpt.pt" \
+      --codes-from "$CODES_FROM" --codes-sdf "$CODES_SDF"
+  else
+    train_chunks prior "$PRIOR_RUN" "$PRIOR_STEPS" --sdf "$SDF_RUN/ckpt.pt"
+  fi
+}
 
 stage_eval() {   # validation only, new weights and the shipped ones side by side; the test
                  # split is scored once, for the weights that ship (docs/geometry.md)

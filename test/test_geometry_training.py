@@ -270,3 +270,79 @@ def test_training_device_is_resolved_or_refused_clearly():
     if not torch.cuda.is_available():
         with pytest.raises(ValueError, match="no CUDA device"):
             resolve_device("cuda")
+
+
+def test_prior_in_another_priors_code_space(prim_data, tmp_path, capsys):
+    """`train prior --codes-from`: a prior for a new auto-encoder that keeps the old prior's
+    codebooks and semantic encoder, so transformers trained for the old one are accepted,
+    learns to read the old codes from the new latents, and is refused once its code space
+    no longer matches."""
+    from model.core.checkpoint import (CheckpointMeta, prior_fingerprint, read_checkpoint,
+                                       write_checkpoint)
+    from model.geometry.api import ShapeModel
+    from model.geometry.data import load_parts
+    from model.geometry.train import encode_parts
+    run = {}
+    for name, seed in (("a", 0), ("b", 1)):
+        sdf = tmp_path / f"sdf_{name}"
+        assert _cli("train", "sdf", "--data", str(prim_data), "--out", str(sdf), "--preset",
+                    "tiny", "--steps", "10", "--seed", str(seed), "--no-progress",
+                    "--threads", "1") == 0
+        run[name] = sdf / "ckpt.pt"
+    old = tmp_path / "prior_a"
+    assert _cli("train", "prior", "--data", str(prim_data), "--out", str(old), "--preset", "tiny",
+                "--sdf", str(run["a"]), "--steps", "10", "--no-progress", "--threads", "1",
+                "--export", str(tmp_path / "prior_a.pt")) == 0
+    common = ["--data", str(prim_data), "--preset", "tiny", "--sdf", str(run["b"]),
+              "--no-progress", "--threads", "1", "--codes-from", str(tmp_path / "prior_a.pt"),
+              "--codes-sdf", str(run["a"])]
+    assert _cli("train", "prior", "--out", str(tmp_path / "prior_b0"), "--steps", "1",
+                *common) == 0
+    assert _cli("train", "prior", "--out", str(tmp_path / "prior_b"), "--steps", "80",
+                "--lr", "3e-3", "--export", str(tmp_path / "prior_b.pt"), *common) == 0
+    a = ShapeModel.load(run["a"], tmp_path / "prior_a.pt")
+    b = ShapeModel.load(run["b"], tmp_path / "prior_b.pt")
+    assert torch.equal(a.prior.codebooks, b.prior.codebooks)
+    for k, v in a.prior.sem_encoder.state_dict().items():
+        assert torch.equal(v, b.prior.sem_encoder.state_dict()[k])
+    texts = ["primitives, body", "primitives, knob"]
+    assert torch.allclose(a.semantic_condition(texts), b.semantic_condition(texts))
+    assert b.info["accepts"] == [b.info["fingerprint"], a.info["fingerprint"]]
+    assert a.info["accepts"] == [a.info["fingerprint"]]
+    # a transformer trained for prior a runs with prior b, one trained for another is refused
+    t = tmp_path / "t.pt"
+    write_checkpoint(t, CheckpointMeta(kind="articulation", prior=a.info["fingerprint"]),
+                     {"config": {}, "state_dict": {}})
+    read_checkpoint(t, "articulation", prior=b.info["accepts"])
+    with pytest.raises(CheckpointError, match="another shape prior"):
+        read_checkpoint(t, "articulation", prior=[b.info["fingerprint"]])
+
+    # b reads from its own latents the codes a reads from its latents of the same parts
+    parts = load_parts(prim_data, "train", with_sdf=False)
+
+    def code_kl(prior_file):
+        sb = ShapeModel.load(run["b"], prior_file)
+        pa = a.code_distribution(encode_parts(a.ae, parts, 256))
+        pb = sb.code_distribution(encode_parts(sb.ae, parts, 256))
+        return float((pa * (pa.clamp_min(1e-12).log() - pb.clamp_min(1e-12).log()))
+                     .sum(-1).mean())
+    before, after = code_kl(tmp_path / "prior_b0" / "ckpt.pt"), code_kl(tmp_path / "prior_b.pt")
+    assert after < 0.5 * before, (before, after)
+
+    # a prior chained on b accepts all three; a tampered code space is refused
+    assert _cli("train", "prior", "--data", str(prim_data), "--out", str(tmp_path / "prior_c"),
+                "--preset", "tiny", "--sdf", str(run["a"]), "--steps", "2", "--no-progress",
+                "--threads", "1", "--codes-from", str(tmp_path / "prior_b.pt"),
+                "--codes-sdf", str(run["b"])) == 0
+    c = ShapeModel.load(run["a"], tmp_path / "prior_c" / "ckpt.pt")
+    assert c.info["accepts"][1:] == b.info["accepts"]
+    ck = torch.load(tmp_path / "prior_b.pt", weights_only=True)
+    ck["state_dict"]["codebooks"] = ck["state_dict"]["codebooks"] + 0.5
+    torch.save(ck, tmp_path / "tampered.pt")
+    with pytest.raises(CheckpointError, match="claims the code space"):
+        ShapeModel.load(run["b"], tmp_path / "tampered.pt")
+    assert prior_fingerprint(read_checkpoint(run["b"], "sdf"), ck) != b.info["fingerprint"]
+    capsys.readouterr()
+    assert _cli("train", "prior", "--out", str(tmp_path / "prior_d"), "--steps", "1",
+                "--codebooks", "2", *common) != 0
+    assert "codebook layout of that prior" in capsys.readouterr().err

@@ -14,7 +14,7 @@ import logging
 import os
 from dataclasses import asdict
 from pathlib import Path
-from typing import Optional
+from typing import Optional, Sequence, Union
 
 from model.core.checkpoint import (FORMAT, CheckpointError, CheckpointMeta, read_checkpoint as
                                    _read, write_checkpoint)
@@ -61,7 +61,7 @@ def save_dict(path: os.PathLike, ck: dict) -> None:
                                   if k not in _HEADER | {"kind", "format"}})
 
 
-def read_checkpoint(path: os.PathLike, prior: Optional[str] = None) -> dict:
+def read_checkpoint(path: os.PathLike, prior: Union[str, Sequence[str], None] = None) -> dict:
     """Load and check a text or image transformer checkpoint (a file, or a run folder with
     transformer.pt / last.pt); ``prior``: see model.core.checkpoint.check_prior."""
     path = Path(path)

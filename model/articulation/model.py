@@ -10,7 +10,7 @@ model.articulation.decode).
 from __future__ import annotations
 
 import os
-from typing import Optional, Union
+from typing import Optional, Sequence, Union
 
 import numpy as np
 import torch
@@ -52,10 +52,11 @@ class ArticulationModel:
         self.text_max_length: int = int(ckpt.get("train_config", {}).get("max_text_tokens", 128))
 
     @classmethod
-    def load(cls, path: Union[str, os.PathLike], prior: Optional[str] = None
+    def load(cls, path: Union[str, os.PathLike], prior: Union[str, Sequence[str], None] = None
              ) -> "ArticulationModel":
-        """``prior``: the fingerprint of the shape prior it will run with; a checkpoint
-        trained against another is refused (model.core.checkpoint.check_prior)."""
+        """``prior``: the fingerprint of the shape prior it will run with (or the list it
+        accepts, ``ShapeModel.info["accepts"]``); a checkpoint trained against another is
+        refused (model.core.checkpoint.check_prior)."""
         ckpt = read_checkpoint(path, prior=prior)
         return cls(build_network(ckpt), ckpt)
 

@@ -29,7 +29,7 @@ import os
 import shlex
 from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
-from typing import Any, Iterable, Optional, Union
+from typing import Any, Iterable, Optional, Sequence, Union
 
 import torch
 
@@ -140,10 +140,10 @@ def _upgrade(ck: dict) -> dict:
 
 
 def read_checkpoint(path: Union[str, os.PathLike], kind: Union[str, Iterable[str]], *,
-                    how: str = "", prior: Optional[str] = None) -> dict:
+                    how: str = "", prior: Union[str, Sequence[str], None] = None) -> dict:
     """Load and check a checkpoint dict (cpu). ``kind``: the kind(s) accepted; ``how``: the
-    command that makes one (said in errors); ``prior``: the fingerprint of the shape prior it
-    will be used with (``check_prior``). Raises CheckpointError with what to do."""
+    command that makes one (said in errors); ``prior``: the fingerprint(s) of the shape prior
+    it will be used with (``check_prior``). Raises CheckpointError with what to do."""
     kinds = (kind,) if isinstance(kind, str) else tuple(kind)
     how = how or f"train one with `artformer train {kinds[0]}`"
     path = Path(path)
@@ -170,9 +170,13 @@ def read_checkpoint(path: Union[str, os.PathLike], kind: Union[str, Iterable[str
     return ck
 
 
-def check_prior(ck: dict, prior: str, path: Union[str, os.PathLike] = "checkpoint") -> None:
+def check_prior(ck: dict, prior: Union[str, Sequence[str]],
+                path: Union[str, os.PathLike] = "checkpoint") -> None:
     """Refuse a transformer / image checkpoint trained against another shape prior than the
-    one (``prior``: its fingerprint) it is about to be used with."""
+    one it is about to be used with. ``prior``: that prior's fingerprint, or the list of
+    fingerprints whose predictions it reads (its own first, then those of the priors whose
+    code space it adopted: ``code_space_hash``)."""
+    accepted = [prior] if isinstance(prior, str) else list(prior)
     have = ck.get("prior", "")
     if not have:
         raise CheckpointError(f"{path} does not record the shape prior it was trained against; "
@@ -181,10 +185,10 @@ def check_prior(ck: dict, prior: str, path: Union[str, os.PathLike] = "checkpoin
         log.warning("%s was trained on stand-in targets (no shape prior): for development only",
                     path)
         return
-    if have != prior:
+    if have not in accepted:
         raise CheckpointError(f"{path} was trained against another shape prior (fingerprint "
-                              f"{have}, this model's prior is {prior}): its codebook predictions "
-                              f"would be mis-read. Retrain it against this prior "
+                              f"{have}, this model's prior is {accepted[0]}): its codebook "
+                              f"predictions would be mis-read. Retrain it against this prior "
                               f"(`artformer train transformer` / `artformer train image`) or "
                               f"use it with the sdf/prior checkpoints it was made with")
 
@@ -204,6 +208,46 @@ def prior_fingerprint(sdf: dict, prior: dict) -> str:
     return h.hexdigest()[:16]
 
 
+# What a transformer's predictions for a prior (code logits P, semantic condition c_s) are read
+# through: these prior config fields and the weights under these state-dict prefixes.
+CODE_SPACE_FIELDS = ("n_codebooks", "codebook_size", "code_dim", "text_dim", "cs_dim",
+                     "encoder_hidden", "text_encoder")
+CODE_SPACE_WEIGHTS = ("codebooks", "sem_encoder.")
+
+
+def code_space_hash(prior: dict) -> str:
+    """Identity of a prior checkpoint's code space (CODE_SPACE_FIELDS of its config and the
+    CODE_SPACE_WEIGHTS, rounded to fp16), hashed: two priors with equal hashes read a
+    transformer's P and c_s alike."""
+    h = hashlib.sha256()
+    cfg = prior.get("config", {})
+    h.update(json.dumps({k: cfg.get(k) for k in CODE_SPACE_FIELDS}, sort_keys=True,
+                        default=str).encode())
+    sd = prior["state_dict"]
+    for k in sorted(sd):
+        if k.startswith(CODE_SPACE_WEIGHTS):
+            h.update(k.encode())
+            h.update(sd[k].detach().to(torch.float16).cpu().contiguous().view(torch.uint8)
+                     .numpy().tobytes())
+    return h.hexdigest()[:16]
+
+
+def accepted_priors(sdf: dict, prior: dict, path: Union[str, os.PathLike] = "prior") -> list:
+    """The fingerprints whose transformers this shape prior reads: its own, then those of
+    the priors whose code space it adopted (``train prior --codes-from``), after checking
+    that its code space is still that one."""
+    own = prior_fingerprint(sdf, prior)
+    cs = (prior.get("extra") or {}).get("code_space")
+    if not cs:
+        return [own]
+    if code_space_hash(prior) != cs.get("hash"):
+        raise CheckpointError(f"{path} claims the code space of shape prior "
+                              f"{cs.get('accepts', ['?'])[0]}, but its codebooks or semantic "
+                              f"encoder differ from it: that prior's transformers would be "
+                              f"mis-read. Retrain it with `artformer train prior --codes-from`")
+    return [own, *cs.get("accepts", [])]
+
+
 def shape_prior_fingerprint(sdf_path: Union[str, os.PathLike],
                             prior_path: Union[str, os.PathLike]) -> str:
     """``prior_fingerprint`` of a pair of checkpoint files."""
@@ -212,4 +256,5 @@ def shape_prior_fingerprint(sdf_path: Union[str, os.PathLike],
 
 __all__ = ["FORMAT", "KINDS", "CheckpointError", "CheckpointMeta", "load_weights_only",
            "write_checkpoint",
-           "read_checkpoint", "check_prior", "prior_fingerprint", "shape_prior_fingerprint"]
+           "read_checkpoint", "check_prior", "prior_fingerprint", "shape_prior_fingerprint",
+           "CODE_SPACE_FIELDS", "CODE_SPACE_WEIGHTS", "code_space_hash", "accepted_priors"]

@@ -60,9 +60,10 @@ class ShapeModel:
                 log.warning("prior %s was trained on an auto-encoder with a different config "
                             "than %s", prior_path, sdf_path)
             bank = pr_ck.get("extra", {}).get("bank")
-            from model.core.checkpoint import prior_fingerprint
+            from model.core.checkpoint import accepted_priors
+            accepts = accepted_priors(ae_ck, pr_ck, prior_path)
             info.update(prior=str(prior_path), prior_data_version=pr_ck["data_version"],
-                        fingerprint=prior_fingerprint(ae_ck, pr_ck))
+                        fingerprint=accepts[0], accepts=accepts)
         return cls(ae, pr, bank, info)
 
     def _need_prior(self):

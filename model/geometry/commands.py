@@ -23,6 +23,14 @@ def _train_parser(kind: str) -> argparse.ArgumentParser:
         p.add_argument("--sdf", required=True, help="trained auto-encoder checkpoint")
         p.add_argument("--codebooks", type=int, help="number of codebooks C (preset: 4)")
         p.add_argument("--codebook-size", type=int, help="entries per codebook N (preset: 128)")
+        p.add_argument("--codes-from", metavar="PRIOR",
+                       help="adopt this prior's code space (codebooks and semantic encoder, "
+                            "frozen) so the transformers trained for it run with the new "
+                            "prior unchanged; needs --codes-sdf")
+        p.add_argument("--codes-sdf", metavar="SDF",
+                       help="with --codes-from: the auto-encoder that prior was trained on")
+        p.add_argument("--distill-weight", type=float, default=1.0,
+                       help="with --codes-from: weight of KL(that prior's codes || this one's)")
         p.add_argument("--bank-per-text", type=int, default=0, metavar="K",
                        help="with --export: keep at most K retrieval latents per label text "
                             "(a seeded draw; label code statistics stay those of all parts); "
@@ -62,7 +70,10 @@ def _train(kind: str, argv: list[str]) -> int:
                    sdf=getattr(a, "sdf", None), n_codebooks=getattr(a, "codebooks", None),
                    codebook_size=getattr(a, "codebook_size", None),
                    argv=tuple(["artformer", *argv]), minutes=a.minutes,
-                   chunk_minutes=a.chunk_minutes, device=getattr(a, "device", "cpu"))
+                   chunk_minutes=a.chunk_minutes, device=getattr(a, "device", "cpu"),
+                   codes_from=getattr(a, "codes_from", None),
+                   codes_sdf=getattr(a, "codes_sdf", None),
+                   distill_weight=getattr(a, "distill_weight", 1.0))
     res = (train_sdf if kind == "sdf" else train_prior)(args)
     import os
     if int(os.environ.get("RANK", "0")) == 0:

@@ -7,6 +7,10 @@ Shape Prior").
   from its own codebook by Gumbel-softmax over negative distances, lifted by 4 linear heads)
   and E_s (pooled label-text embedding -> 64-d c_s). The diffusion process is passed in.
 
+A prior can adopt another's code space (``adopt_code_space``: its codebooks and E_s, frozen)
+and learn to generate a new auto-encoder's latents from that prior's codes, so transformers
+trained for the other prior run with it unchanged (``train prior --codes-from``).
+
 The prior works on a normalised latent (z - z_mean) / z_std; the statistics are buffers set
 from the training latents, so callers always see the auto-encoder's raw z.
 """
@@ -18,6 +22,8 @@ from typing import Optional
 import torch
 import torch.nn as nn
 import torch.nn.functional as F
+
+from model.core.checkpoint import CODE_SPACE_FIELDS
 
 from .config import PriorConfig
 from .diffusion import DROP_BOTH, DROP_GEO, DROP_NONE, Diffusion
@@ -143,23 +149,52 @@ class ShapePrior(nn.Module):
 
     # -- training -------------------------------------------------------------------------
     def forward(self, z: torch.Tensor, text_emb: torch.Tensor,
-                generator: Optional[torch.Generator] = None) -> tuple[torch.Tensor, dict]:
-        """z (B, Z) raw latents, text_emb (B, text_dim) pooled label texts -> (loss, stats)."""
+                generator: Optional[torch.Generator] = None,
+                teacher_logits: Optional[torch.Tensor] = None,
+                distill_weight: float = 1.0) -> tuple[torch.Tensor, dict]:
+        """z (B, Z) raw latents, text_emb (B, text_dim) pooled label texts -> (loss, stats).
+
+        ``teacher_logits`` (B, K, N): the code logits another prior reads from its own latents
+        of these parts (``adopt_code_space``). The denoiser is then conditioned on the
+        teacher's codes, as the transformer's predictions for that prior will condition it,
+        and the geometry encoder learns to read the same codes from this prior's latents
+        (``distill_weight`` x KL(teacher || own), in place of the code-usage term: the
+        codebooks are frozen)."""
         cfg = self.cfg
         B = z.shape[0]
         x0 = self.normalise(z)
         D = self.code_logits(x0)                                        # (B, K, N)
-        geo = self.geo_tokens(gumbel_softmax(D, cfg.tau_train, generator))
+        cond = D if teacher_logits is None else teacher_logits.float()
+        geo = self.geo_tokens(gumbel_softmax(cond, cfg.tau_train, generator))
         cs = self.sem_encoder(text_emb)                                 # (B, S)
         u = torch.rand(B, generator=generator)
         drop = torch.full((B,), DROP_NONE, dtype=torch.long)
         drop[u < cfg.p_drop_both + cfg.p_drop_geo] = DROP_GEO
         drop[u < cfg.p_drop_both] = DROP_BOTH
         diff = self.diffusion.training_loss(self.denoiser, x0, (geo, cs), drop, generator)
+        if teacher_logits is not None:
+            kl = F.kl_div(F.log_softmax(D, dim=-1), F.log_softmax(cond, dim=-1),
+                          log_target=True, reduction="none").sum(-1).mean()
+            return diff + distill_weight * kl, {"diffusion": float(diff.detach()),
+                                                "distill_kl": float(kl.detach())}
         usage = F.softmax(D, dim=-1).mean(0)                            # (K, N)
         kl_u = (usage * (usage.clamp_min(1e-12) * cfg.codebook_size).log()).sum(-1).mean()
         loss = diff + cfg.usage_weight * kl_u
         return loss, {"diffusion": float(diff.detach()), "usage_kl": float(kl_u.detach())}
+
+    def adopt_code_space(self, other: "ShapePrior") -> None:
+        """Take ``other``'s codebooks and semantic encoder and freeze them, so code logits
+        and c_s made for ``other`` (a transformer's predictions) mean the same here; the rest
+        trains against ``other``'s codes (``forward(teacher_logits=...)``)."""
+        for k in CODE_SPACE_FIELDS:
+            if getattr(self.cfg, k) != getattr(other.cfg, k):
+                raise ValueError(f"the code space's prior has {k}={getattr(other.cfg, k)!r}, "
+                                 f"this one {getattr(self.cfg, k)!r}")
+        with torch.no_grad():
+            self.codebooks.copy_(other.codebooks)
+            self.sem_encoder.load_state_dict(other.sem_encoder.state_dict())
+        self.codebooks.requires_grad_(False)
+        self.sem_encoder.requires_grad_(False)
 
     # -- inference ------------------------------------------------------------------------
     @torch.inference_mode()

@@ -1,5 +1,9 @@
 """Training of the SDF auto-encoder and of the diffusion prior.
 
+``train_prior`` with ``codes_from`` trains a prior for a new auto-encoder in another prior's
+code space (its codebooks and semantic encoder, frozen): the transformers trained for that
+prior run with the new one unchanged.
+
 Both run on the shared loop (model.core.training): single process by default; under
 ``torchrun --nproc_per_node N`` DDP over gloo (CPU), every rank draws its own random batches,
 rank 0 validates, logs (OUT/log.jsonl) and writes checkpoints. Resumable from ``OUT/ckpt.pt``.
@@ -16,6 +20,7 @@ from typing import Optional
 
 import torch
 
+from model.core.checkpoint import CODE_SPACE_FIELDS
 from model.core.training import Dist, LoopConfig, LoopState, resolve_device, train_loop
 
 from .checkpoint import CheckpointError, load_checkpoint, read_checkpoint, save_checkpoint
@@ -44,6 +49,9 @@ class RunArgs:
     minutes: float = 0.0                 # wall-clock budget over resumes (0 = none)
     chunk_minutes: float = 0.0           # stop this process after M minutes (resume continues)
     device: str = "cpu"                  # sdf only: cpu | cuda | auto (the prior runs on cpu)
+    codes_from: Optional[str] = None     # prior only: adopt this prior's code space ...
+    codes_sdf: Optional[str] = None      # ... whose latents come from this auto-encoder
+    distill_weight: float = 1.0          # prior only, with codes_from: weight of KL(codes)
 
 
 def _train_cfg(base: TrainConfig, args: RunArgs, n_items: int, world: int) -> TrainConfig:
@@ -189,6 +197,38 @@ def pooled_text(texts: list[str], encoder_name: str, expect_dim: int) -> torch.T
     return enc.encode(texts).pooled.float()                   # (T, text_dim)
 
 
+@dataclass
+class _Teacher:
+    """The prior whose code space a new prior adopts, with the auto-encoder of its latents."""
+    ae: object
+    prior: object
+    n_points: int
+    record: dict          # checkpoint entry "code_space": {"accepts": [...], "hash": ...}
+
+    @torch.inference_mode()
+    def code_logits(self, z: torch.Tensor) -> torch.Tensor:
+        """Its latents (M, Z) -> its code logits (M, K, N), in batches."""
+        return torch.cat([self.prior.code_logits(self.prior.normalise(z[i:i + 4096]))
+                          for i in range(0, len(z), 4096)])
+
+
+def _code_space_teacher(args: RunArgs) -> _Teacher:
+    from model.core.checkpoint import accepted_priors, code_space_hash
+    if not args.codes_sdf:
+        raise ValueError("--codes-from needs --codes-sdf: the auto-encoder that prior was "
+                         "trained on (its latents of the parts give the codes to learn)")
+    ae, ae_ck = load_checkpoint(args.codes_sdf, "sdf")
+    pr, pr_ck = load_checkpoint(args.codes_from, "prior")
+    if pr.cfg.z_dim != ae.cfg.z_dim:
+        raise CheckpointError(f"{args.codes_from} was trained on {pr.cfg.z_dim}-d latents but "
+                              f"{args.codes_sdf} makes {ae.cfg.z_dim}-d ones")
+    n_pts = int(ae_ck.get("train_config", {}).get("n_points", 1024))
+    record = {"accepts": accepted_priors(ae_ck, pr_ck, args.codes_from),
+              "hash": code_space_hash(pr_ck), "prior": str(args.codes_from),
+              "sdf": str(args.codes_sdf)}
+    return _Teacher(ae.eval(), pr.eval(), n_pts, record)
+
+
 def train_prior(args: RunArgs) -> dict:
     from .data import load_parts
     from .prior import ShapePrior
@@ -204,6 +244,12 @@ def train_prior(args: RunArgs) -> dict:
         cfg = replace(cfg, n_codebooks=int(args.n_codebooks))
     if args.codebook_size is not None:
         cfg = replace(cfg, codebook_size=int(args.codebook_size))
+    teacher = _code_space_teacher(args) if args.codes_from else None
+    if teacher is not None:
+        if args.n_codebooks is not None or args.codebook_size is not None:
+            raise ValueError("--codes-from takes the codebook layout of that prior: drop "
+                             "--codebooks / --codebook-size")
+        cfg = replace(cfg, **{k: getattr(teacher.prior.cfg, k) for k in CODE_SPACE_FIELDS})
     train = load_parts(args.data, "train", progress=dist.main and args.progress, with_sdf=False)
     try:
         val = load_parts(args.data, "val", with_sdf=False)
@@ -220,24 +266,38 @@ def train_prior(args: RunArgs) -> dict:
     lookup = {t: i for i, t in enumerate(vocab)}
     tid_train = torch.tensor([lookup[t] for t in train.texts])
     tid_val = torch.tensor([lookup[t] for t in val.texts])
+    if teacher is not None:     # the code space's own latents of the same parts
+        d_train = teacher.code_logits(encode_parts(teacher.ae, train, teacher.n_points,
+                                                   seed=args.seed))
+        d_val = teacher.code_logits(encode_parts(teacher.ae, val, teacher.n_points,
+                                                 seed=args.seed + 1))
     if dist.main:
         log.info("encoded %d train / %d val parts in %.1fs", len(train), len(val), time.time() - t0)
 
     torch.manual_seed(args.seed)
     model = ShapePrior(cfg)
     model.set_latent_stats(z_train)
+    extra = {"data": str(args.data), "sdf_checkpoint": str(args.sdf),
+             "sdf_config": ae_ckpt["config"]}
+    if teacher is not None:
+        model.adopt_code_space(teacher.prior)
+        extra["code_space"] = teacher.record
 
     vgen_seed = 4242
     vsel = torch.randperm(len(val), generator=torch.Generator().manual_seed(vgen_seed))[:tcfg.val_parts]
 
     def batch_fn(net, gen):
         idx = torch.randint(0, len(train), (tcfg.batch_size,), generator=gen)
-        return net(z_train[idx], emb[tid_train[idx]], gen)
+        if teacher is None:
+            return net(z_train[idx], emb[tid_train[idx]], gen)
+        return net(z_train[idx], emb[tid_train[idx]], gen, teacher_logits=d_train[idx],
+                   distill_weight=args.distill_weight)
 
     def val_fn():
         g = torch.Generator().manual_seed(vgen_seed)
         with torch.no_grad():
-            loss, stats = model(z_val[vsel], emb[tid_val[vsel]], g)
+            loss, stats = model(z_val[vsel], emb[tid_val[vsel]], g,
+                                teacher_logits=None if teacher is None else d_val[vsel])
         return stats["diffusion"]
 
     bank = {"latents": z_train.half(), "text_ids": torch.tensor([train.text_vocab.index(t)
@@ -248,8 +308,7 @@ def train_prior(args: RunArgs) -> dict:
     def save_fn(path, step, opt, run):
         save_checkpoint(path, "prior", model, data_version=train.data_version, seed=args.seed,
                         argv=list(args.argv), step=step, optimizer=opt, train_cfg=tcfg, run=run,
-                        extra={"data": str(args.data), "sdf_checkpoint": str(args.sdf),
-                               "sdf_config": ae_ckpt["config"], "bank": bank})
+                        extra={**extra, "bank": bank})
 
     res = _loop("prior", args, model, tcfg, batch_fn, val_fn, dist, out, save_fn)
     dist.close()

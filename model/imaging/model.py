@@ -18,7 +18,7 @@ import logging
 import os
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Optional, Union
+from typing import Optional, Sequence, Union
 
 import torch
 
@@ -138,10 +138,10 @@ class ImageArticulationModel:
 
 
 def load_image_model(path: Union[str, os.PathLike, None] = None,
-                     prior: Optional[str] = None) -> ImageArticulationModel:
+                     prior: Union[str, Sequence[str], None] = None) -> ImageArticulationModel:
     """The one loader of image checkpoints (``None`` = the shipped model/weights/image_small.pt).
-    ``prior``: fingerprint of the shape prior it will run with (model.core.checkpoint); a
-    model trained against another prior is refused."""
+    ``prior``: fingerprint of the shape prior it will run with, or the list it accepts
+    (model.core.checkpoint); a model trained against another prior is refused."""
     from model.articulation.checkpoint import build_network, read_checkpoint
     from model.articulation.decode import ArticulationModel
     p = Path(path) if path is not None else SHIPPED

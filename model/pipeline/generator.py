@@ -83,7 +83,7 @@ class Generator:
             shape = ShapeModel.load(paths["sdf"], paths["prior"])
             # refuses a transformer trained against another shape prior
             articulation = ArticulationModel.load(paths["transformer"],
-                                                  prior=shape.info["fingerprint"])
+                                                  prior=shape.info["accepts"])
         except GenerationError:
             raise
         except Exception as e:  # corrupt / mismatched checkpoints: say which stage
@@ -98,7 +98,7 @@ class Generator:
                     image_shape = ShapeModel.load(paths["image_sdf"], paths["image_prior"])
                     prior = paths["image_prior"]
                 image_model = load_image_model(paths["image"],
-                                               prior=image_shape.info["fingerprint"])
+                                               prior=image_shape.info["accepts"])
                 check_codebooks(image_model.am.cfg, image_shape, paths["image"], prior)
             except Exception as e:
                 image_model, image_shape = None, None
