@@ -9,7 +9,9 @@
 #   bash scripts/device_sdf.sh     # there (device run, carry .devrun), with $OUT set
 #
 # Settings: PRESET, SYNTH_S (seconds of synthesis), STEPS, BATCH, DEADLINE_S (seconds after
-# start by which training has stopped). Back home: cat sdf_ckpt.part* > runs/.../ckpt.pt.
+# start by which training has stopped). Back home: cat sdf_ckpt.part* > runs/.../ckpt.pt, then
+# the prior in the shipped code space (the shipped text and image models keep working):
+# CODES_FROM=model/weights/prior_small.pt STAGE=prior bash scripts/recipe_geometry.sh
 set -uo pipefail
 T0=$(date +%s)
 PRESET=${PRESET:-small-fine}

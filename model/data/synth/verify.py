@@ -79,7 +79,6 @@ def check_object(obj: ArticulatedObject, states: int = 10, *, attach_distance: f
                     if stop_early:
                         return rep
     return rep
-    return rep
 
 
 def _audit_failures(obj: ArticulatedObject, physics: bool) -> list[str]:
