@@ -329,6 +329,21 @@ def test_prior_in_another_priors_code_space(prim_data, tmp_path, capsys):
     before, after = code_kl(tmp_path / "prior_b0" / "ckpt.pt"), code_kl(tmp_path / "prior_b.pt")
     assert after < 0.5 * before, (before, after)
 
+    # scripts/code_space_check.py score: shapes drawn from a's codes through a and through b;
+    # a pair that does not read a's code space is refused
+    import importlib.util
+    spec = importlib.util.spec_from_file_location("code_space_check",
+                                                  ROOT / "scripts" / "code_space_check.py")
+    csc = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(csc)
+    pairs = [(str(run["a"]), str(tmp_path / "prior_a.pt")),
+             (str(run["b"]), str(tmp_path / "prior_b.pt"))]
+    res = csc.score(str(prim_data), "train", pairs, 2, 0)
+    assert [r["prior"] for r in res] == [p for _, p in pairs]
+    assert all(r["n"] == res[0]["n"] > 0 and 0.0 <= r["fscore"] <= 1.0 for r in res)
+    with pytest.raises(CheckpointError, match="does not read the code space"):
+        csc.score(str(prim_data), "train", pairs[::-1], 2, 0)
+
     # a prior chained on b accepts all three; a tampered code space is refused
     assert _cli("train", "prior", "--data", str(prim_data), "--out", str(tmp_path / "prior_c"),
                 "--preset", "tiny", "--sdf", str(run["a"]), "--steps", "2", "--no-progress",
