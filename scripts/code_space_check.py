@@ -67,8 +67,8 @@ def score(data: str, split: str, pairs: list, per_label: int, seed: int) -> list
     from model.core.checkpoint import CheckpointError
     from model.geometry.api import ShapeModel
     from model.geometry.data import load_parts
-    from model.geometry.eval_metrics import encode_parts, per_label as by_label, select_parts
-    from model.geometry.eval_metrics import summarise
+    from model.geometry.eval_metrics import (encode_parts, per_label as by_label, select_parts,
+                                             summarise)
     from model.geometry.eval_samples import reconstruct
     parts = load_parts(data, split, with_sdf=False)
     idx = select_parts(parts, per_label=per_label, max_parts=None, seed=seed)

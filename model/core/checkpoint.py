@@ -193,18 +193,24 @@ def check_prior(ck: dict, prior: Union[str, Sequence[str]],
                               f"use it with the sdf/prior checkpoints it was made with")
 
 
+def _hash_weights(h, state_dict: dict, prefixes: tuple = ("",)) -> None:
+    """Feed the tensors under ``prefixes`` to hash ``h`` by name, floats rounded to fp16 (so a
+    training checkpoint and its fp16 export agree)."""
+    for k in sorted(state_dict):
+        if k.startswith(prefixes):
+            v = state_dict[k].detach()
+            v = v.to(torch.float16) if v.is_floating_point() else v
+            h.update(k.encode())
+            h.update(v.cpu().contiguous().view(torch.uint8).numpy().tobytes())
+
+
 def prior_fingerprint(sdf: dict, prior: dict) -> str:
     """Identity of a shape prior: its SDF auto-encoder and codebook prior configs and weights
     (rounded to fp16, so a training checkpoint and its fp16 export agree), hashed."""
     h = hashlib.sha256()
     for ck in (sdf, prior):
         h.update(json.dumps(ck.get("config", {}), sort_keys=True, default=str).encode())
-        sd = ck["state_dict"]
-        for k in sorted(sd):
-            v = sd[k]
-            h.update(k.encode())
-            v = v.detach().to(torch.float16) if v.is_floating_point() else v.detach()
-            h.update(v.cpu().contiguous().view(torch.uint8).numpy().tobytes())
+        _hash_weights(h, ck["state_dict"])
     return h.hexdigest()[:16]
 
 
@@ -223,12 +229,7 @@ def code_space_hash(prior: dict) -> str:
     cfg = prior.get("config", {})
     h.update(json.dumps({k: cfg.get(k) for k in CODE_SPACE_FIELDS}, sort_keys=True,
                         default=str).encode())
-    sd = prior["state_dict"]
-    for k in sorted(sd):
-        if k.startswith(CODE_SPACE_WEIGHTS):
-            h.update(k.encode())
-            h.update(sd[k].detach().to(torch.float16).cpu().contiguous().view(torch.uint8)
-                     .numpy().tobytes())
+    _hash_weights(h, prior["state_dict"], CODE_SPACE_WEIGHTS)
     return h.hexdigest()[:16]
 
 
