@@ -180,6 +180,17 @@ def test_parse_free_form(prompt, category, counts, lower, joints):
     ("a bottle with a flip-top cap", "Bottle lid=1"),
     ("a desk pedestal with two stacked drawers on top and three drawers below",   # no row
      "StorageFurniture drawer=5 drawer.layout=column drawer.vpos=bottom/top"),
+    # a full-front door stated on one side is hinged there (a safe's door had been made a
+    # strip on the right half of its front); a cabinet's door keeps its place beside the rest
+    ("a safe with a keypad and a door on the right", "Safe door=1 button>=2 "
+     "door.hinge=right door.opens=sideways"),
+    ("a washing machine with a door on the left", "WashingMachine door=1 door.hinge=left "
+     "door.opens=sideways"),
+    ("a safe whose door is on the left and opens downward", "Safe door=1 door:revolute "
+     "door.hpos=left door.opens=down"),
+    ("an oven with a door on the right and knobs on the left", "Oven door=1 knob>=2 "
+     "door.hpos=right knob.hpos=left"),
+    ("a cabinet with a door on the right", "StorageFurniture door=1 door.hpos=right"),
 ])
 def test_parse_spatial_wordings(prompt, line):
     assert parse_prompt(prompt).to_json() == ExpectedStructure.from_line(line).to_json()

@@ -158,6 +158,18 @@ def test_a_safes_keypad_is_a_three_by_three_grid_on_its_door(gen):
 
 
 
+def test_a_safe_door_on_one_side_covers_the_front_hinged_there(gen):
+    """"A safe with a keypad and a door on the right" had its door moved to the right half of
+    the front (seeds 0-5: 0.175 m of a 0.44 m wide body), the rest of the safe open. The door
+    covers the front and turns on its right edge (the viewer's right: +y)."""
+    for seed in range(2):
+        trees, *_ = gen.decode_trees("a safe with a keypad and a door on the right", seed=seed)
+        obj = gen.layout(trees[0])
+        body, [door] = obj.parts[0], [p for p in obj.parts if p.label == "door"]
+        assert door.bbox_size[1] > 0.7 * body.bbox_size[1], (seed, door.bbox_size)   # walls
+        assert door.joint.origin[1] > door.bbox_center[1] + 0.4 * door.bbox_size[1], seed
+
+
 def test_a_locker_is_tall_and_a_filing_cabinet_one_narrow_column_of_drawers(gen):
     """The data calls a body a locker only over 1.2 m tall and under 0.65 m wide, and a
     filing cabinet only one column of drawers under 0.6 m wide: "a locker" decoded under

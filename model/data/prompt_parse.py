@@ -415,6 +415,27 @@ HINGED_NAMES = {"Oven": ((("microwave",), "left", "sideways"),
                          (("dishwasher", "dish washer"), "bottom", "down"))}
 
 
+# categories whose one door covers the whole front in the data (model/data/synth: every safe,
+# oven and washer door is in the middle of its face); "on the left" can only say its hinge
+FULL_FRONT_DOOR = ("Safe", "WashingMachine", "Oven")
+
+
+def _side_as_hinge(out: ExpectedStructure) -> None:
+    """"A safe with a door on the right": the only lateral fact a full-front door has is its
+    hinge side, so a lone door stated on the left or right of such a category (``hpos``, no
+    hinge or vertical opening stated, no other part placed left or right) is hinged on that
+    side. Read as a position it made the door a strip on half the front, the rest open."""
+    door = out.spatial.get("door") or {}
+    side = door.get("hpos") or []
+    if out.category not in FULL_FRONT_DOOR or out.counts.get("door") != 1 \
+            or side not in (["left"], ["right"]) or door.get("hinge") \
+            or set(door.get("opens") or []) - {"sideways"} \
+            or any(f.get("hpos") for lab, f in out.spatial.items() if lab != "door"):
+        return
+    rest = {k: v for k, v in door.items() if k != "hpos"}
+    out.spatial["door"] = {**rest, "hinge": list(side), "opens": ["sideways"]}
+
+
 def _tidy(out: ExpectedStructure, text: str) -> None:
     """Category-specific readings and tidy spatial facts."""
     low = text.lower()
@@ -440,6 +461,7 @@ def _tidy(out: ExpectedStructure, text: str) -> None:
         if not (door.get("hinge") or door.get("opens") or said):
             out.spatial["door"] = {**door, "hinge": [side], "opens": [opens]}
         break
+    _side_as_hinge(out)
     if out.category == "USB" and "lid" in (set(out.counts) | set(out.min_counts)) \
             and "cap" not in out.counts:          # a USB stick's cover is its cap
         _relabel(out, "lid", "cap")
