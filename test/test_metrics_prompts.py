@@ -191,6 +191,19 @@ def test_parse_free_form(prompt, category, counts, lower, joints):
     ("an oven with a door on the right and knobs on the left", "Oven door=1 knob>=2 "
      "door.hpos=right knob.hpos=left"),
     ("a cabinet with a door on the right", "StorageFurniture door=1 door.hpos=right"),
+    # a row at the top or bottom said with "along" or "row" (doors made full-height strips
+    # and the drawers a column beside them: no place had been read)
+    ("a long cabinet with four doors in the top row and four drawers in the bottom row",
+     "StorageFurniture door=4 drawer=4 door.vpos=top door.layout=row drawer.vpos=bottom "
+     "drawer.layout=row"),
+    ("a sideboard with three doors along the top and three drawers along the bottom",
+     "StorageFurniture door=3 drawer=3 door.vpos=top door.layout=row drawer.vpos=bottom "
+     "drawer.layout=row"),
+    ("a cabinet with two doors in the upper row and two drawers in the lower row",
+     "StorageFurniture door=2 drawer=2 door.vpos=top door.layout=row drawer.vpos=bottom "
+     "drawer.layout=row"),
+    ("a wardrobe with two doors and one drawer along the bottom",     # no row of one
+     "StorageFurniture door=2 drawer=1 drawer.vpos=bottom"),
 ])
 def test_parse_spatial_wordings(prompt, line):
     assert parse_prompt(prompt).to_json() == ExpectedStructure.from_line(line).to_json()

@@ -170,6 +170,24 @@ def test_a_safe_door_on_one_side_covers_the_front_hinged_there(gen):
         assert door.joint.origin[1] > door.bbox_center[1] + 0.4 * door.bbox_size[1], seed
 
 
+def test_doors_in_the_top_row_and_drawers_in_the_bottom_row(gen):
+    """"Four doors in the top row and four drawers in the bottom row" came out as four
+    full-height doors with the drawers in a column on the cabinet's side (seeds 0-2): every
+    door now sits above every drawer, each row side by side."""
+    for seed in range(2):
+        trees, *_ = gen.decode_trees("a long cabinet with four doors in the top row and four "
+                                     "drawers in the bottom row", seed=seed)
+        obj = gen.layout(trees[0])
+        rows = {lab: [p for p in obj.parts if p.label == lab] for lab in ("door", "drawer")}
+        assert len(rows["door"]) == 4 and len(rows["drawer"]) == 4, seed
+        lowest_door = min(p.bbox_center[2] - p.bbox_size[2] / 2 for p in rows["door"])
+        highest_drawer = max(p.bbox_center[2] + p.bbox_size[2] / 2 for p in rows["drawer"])
+        assert lowest_door >= highest_drawer - 1e-3, (seed, lowest_door, highest_drawer)
+        for parts in rows.values():
+            zs = [p.bbox_center[2] for p in parts]
+            assert max(zs) - min(zs) < 0.01, (seed, zs)                   # one row each
+
+
 def test_a_locker_is_tall_and_a_filing_cabinet_one_narrow_column_of_drawers(gen):
     """The data calls a body a locker only over 1.2 m tall and under 0.65 m wide, and a
     filing cabinet only one column of drawers under 0.6 m wide: "a locker" decoded under

@@ -234,7 +234,8 @@ _SPATIAL_PATTERNS: list[tuple[str, str, str]] = [
     ("over", rf"\b{_N} over {_N}\b", "post"),
     ("relit", r"\b(above|below|under|underneath|beneath|on top of) (?:it|them)\b", "post"),
     ("vpos+hpos", r"\b(?:on|at|in) the (top|bottom)[- ](left|right|cent(?:er|re))\b", "post"),
-    ("vpos+row", r"\bacross the (top|bottom)\b", "post"),
+    ("vpos+row", r"\b(?:across|along) the (top|bottom)\b"
+                 r"|\b(?:in|on|along|across) the (top|bottom|upper|lower) row\b", "post"),
     ("layout=row", r"\bacross the (?:front|panel|control panel|face)\b", "post"),
     ("rows+columns", rf"\b{_N} (rows|columns),? (?:and |by |x |× )?{_N} (?:rows|columns)\b", "post"),
     ("rows", rf"\bin {_N} (?:horizontal )?rows\b", "post"),
@@ -322,9 +323,12 @@ def _spatial_facts(sentence: str, toks: list[_Tok]) -> list[_Fact]:
                 R, C = (first, other) if vals[1] == "rows" else (other, first)
                 for k2, v2 in (("rows", R), ("columns", C)):
                     facts.append(_Fact(k2, [v2], a, b, mode))
-            elif key == "vpos+row":
-                facts.append(_Fact("vpos", [vals[0]], a, b, mode))
-                facts.append(_Fact("layout", ["row"], a, b, mode))
+            elif key == "vpos+row":      # "along the top", "in the lower row"
+                side = {"upper": "top", "lower": "bottom"}.get(vals[0], vals[0])
+                facts.append(_Fact("vpos", [side], a, b, mode))
+                said_of = [t for t in toks if t.end <= a and t.kind == "PART"][-1:]
+                if not said_of or said_of[0].plural:   # "one drawer along the bottom": no row
+                    facts.append(_Fact("layout", ["row"], a, b, mode))
             elif key == "vpos+hpos":
                 facts.append(_Fact("vpos", [vals[0]], a, b, mode))
                 side = "middle" if vals[1].startswith("cent") else vals[1]
