@@ -506,10 +506,38 @@ def test_an_oven_door_decoded_on_the_top_face_turns_onto_the_front():
     before = _structure(obj)
     rep = refine_layout(obj)
     door = obj.parts[1]
-    assert rep["oven_door_turned"] == 1 and _structure(obj) == before
+    assert rep["doors_turned_to_front"] == 1 and _structure(obj) == before
     assert int(np.argmin(door.bbox_size)) == 0 and door.bbox_center[0] > 0.25
     assert door.bbox_size[2] > 0.5 and abs(door.joint.axis[1]) > 0.99
     assert not any(_boxes_overlap(door, c) for c in obj.parts[3:])
+
+
+def test_a_washer_door_decoded_on_top_becomes_the_porthole_door_and_its_dial_goes_front():
+    """"a front loader washing machine with a detergent drawer on the top left", seed 0: the
+    door came out as a 17 x 30 cm flap lying at the top of the body (the porthole open) and
+    the dial behind the body's centre, attached to the back face. The door becomes the data's
+    front-loader door, a disc centred on the front turning about a vertical axis; the dial
+    goes onto the front."""
+    obj = ArticulatedObject(category="WashingMachine", name="washer", parts=[
+        _part("body_0", "body", -1, (0.618, 0.664, 0.937), (0, 0, 0.469)),
+        _part("dial_0", "dial", 0, (0.033, 0.072, 0.065), (-0.105, 0.12, 0.875),
+              Joint(JointType.CONTINUOUS, (-0.122, 0.12, 0.875), (1, 0, 0))),
+        _part("drawer_0", "drawer", 0, (0.237, 0.323, 0.056), (0.191, -0.071, 0.778),
+              Joint(JointType.PRISMATIC, (0.309, -0.071, 0.778), (1, 0, 0), t_range=(0, 0.2))),
+        _part("door_0", "door", 0, (0.173, 0.302, 0.078), (0.223, -0.098, 0.699),
+              Joint(JointType.REVOLUTE, (0.309, -0.098, 0.699), (1, 0, 0), r_range=(0, 1.6))),
+        _part("handle_0", "handle", 3, (0.046, 0.028, 0.012), (0.332, -0.193, 0.699))])
+    before = _structure(obj)
+    rep = refine_layout(obj)
+    body, dial, door = obj.parts[0], obj.parts[1], obj.parts[3]
+    assert rep["doors_turned_to_front"] == 1 and rep["controls_to_front"] == 1
+    assert _structure(obj) == before
+    assert int(np.argmin(door.bbox_size)) == 0 and door.bbox_center[0] > 0.25    # on the front
+    assert abs(door.bbox_center[1]) < 0.01 and door.bbox_size[1] > 0.5           # centred, wide
+    assert door.bbox_size[2] == pytest.approx(door.bbox_size[1])                 # a disc
+    assert abs(door.joint.axis[2]) > 0.99                                        # side-hinged
+    assert dial.bbox_center[0] > 0.3 and dial.bbox_center[2] > door.bbox_center[2] + 0.3
+    assert not _boxes_overlap(door, dial) and not _boxes_overlap(door, obj.parts[2])
 
 
 def test_oven_door_fills_its_front_and_stays_clear_of_the_controls():
