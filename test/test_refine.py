@@ -540,6 +540,39 @@ def test_a_washer_door_decoded_on_top_becomes_the_porthole_door_and_its_dial_goe
     assert not _boxes_overlap(door, dial) and not _boxes_overlap(door, obj.parts[2])
 
 
+def _chest(drawers) -> ArticulatedObject:
+    """A decoded-like chest: drawers (y, z, width, height) on the front of a 1.13 x 1.58 m
+    body, 36 cm deep."""
+    return ArticulatedObject(category="StorageFurniture", name="chest", parts=[
+        _part("body_0", "body", -1, (0.457, 1.134, 1.584), (0, 0, 0.792))] + [
+        _part(f"drawer_{n}", "drawer", 0, (0.356, w, h), (0.05, y, z),
+              Joint(JointType.PRISMATIC, (0.228, y, z), (1, 0, 0), t_range=(0, 0.3)))
+        for n, (y, z, w, h) in enumerate(drawers)])
+
+
+def test_columns_of_unequal_counts_become_rows_of_equal_drawers():
+    """"a cabinet with ten drawers", seed 2: three columns of 4, 3 and 3 drawers at staggered
+    heights, holes between them (the fronts covered 79 % of the rectangle they span). They
+    become rows of three equal drawers and a wide one at the bottom; a chest of two small
+    drawers over three wide ones (the data's own layout) keeps its rows."""
+    obj = _chest([(0.348, 1.366, 0.404, 0.331), (-0.007, 1.289, 0.347, 0.272),
+                  (-0.372, 1.389, 0.346, 0.237), (0.323, 0.879, 0.403, 0.296),
+                  (-0.031, 1.018, 0.341, 0.305), (-0.396, 1.068, 0.345, 0.296),
+                  (0.333, 0.633, 0.383, 0.308), (-0.004, 0.722, 0.321, 0.278),
+                  (-0.237, 0.809, 0.33, 0.261), (0.243, 0.449, 0.38, 0.237)])
+    rep = refine_layout(obj)
+    drawers = obj.parts[1:]
+    assert rep.get("evened") == 1
+    zs = np.round([p.bbox_center[2] for p in drawers], 4)
+    assert sorted(np.unique(zs, return_counts=True)[1]) == [1, 3, 3, 3]
+    assert len(np.unique(np.round([p.bbox_size[2] for p in drawers], 4))) == 1   # equal rows
+    assert not any(_boxes_overlap(a, b) for n, a in enumerate(drawers) for b in drawers[n + 1:])
+    kept = _chest([(-0.25, 1.3, 0.5, 0.25), (0.25, 1.3, 0.5, 0.25), (0.0, 1.0, 1.05, 0.28),
+                   (0.0, 0.7, 1.05, 0.28), (0.0, 0.4, 1.05, 0.28)])
+    assert not refine_layout(kept).get("evened")
+    assert len(np.unique(np.round([p.bbox_center[2] for p in kept.parts[1:]], 3))) == 4
+
+
 def test_oven_door_fills_its_front_and_stays_clear_of_the_controls():
     from model.refine.layout import CLEAR
     from model.refine.siblings import CLEAR_SWING, FILL_FRAME

@@ -108,6 +108,29 @@ def _unheap(obj: ArticulatedObject, members: list[int]) -> list[int]:
     return per
 
 
+EVEN_WIDTH = 1.5    # fronts of one label within this ratio of widths: one column size
+
+
+def _uneven(obj: ArticulatedObject, members: list[int], stated: Optional[dict]) -> bool:
+    """Whether ``members`` (five or more storage drawers or doors of one label on the front,
+    no arrangement or place stated for them) are columns of one width holding different
+    numbers of fronts: "a cabinet with ten drawers", seed 2, came out as columns of 4, 3 and
+    3 drawers at staggered heights, with holes between them. A front of the data repeats one
+    cell; a layout of wide and narrow fronts ("two small drawers over three wide ones") is
+    left as decoded."""
+    from .arrange import H
+
+    parts = [obj.parts[i] for i in members]
+    if obj.category != "StorageFurniture" or len(members) < 5 or parts[0].label not in HEAPS \
+            or set((stated or {}).get(parts[0].label) or {}) & PLACED:
+        return False
+    widths = [p.bbox_size[H] for p in parts]
+    if max(widths) > EVEN_WIDTH * min(widths):
+        return False
+    cols = _clusters(np.array([p.bbox_center[H] for p in parts]), 0.5 * float(np.median(widths)))
+    return len({len(c) for c in cols}) > 1
+
+
 TALL_DRAWER = 1.5   # a drawer front this many times as tall as wide is no drawer furniture has
 
 
@@ -887,6 +910,10 @@ def siblings(obj: ArticulatedObject, cfg: LayoutConfig, report: dict,
                             and _heaped(obj, same, k) and _alone(obj, same, members, k):
                         heaps.append((same, _unheap(obj, same)))
                         report["unheaped"] = report.get("unheaped", 0) + 1
+                    elif cfg.heaps and k == 0 and _uneven(obj, same, stated) \
+                            and _alone(obj, same, members, k):
+                        heaps.append((same, _unheap(obj, same)))
+                        report["evened"] = report.get("evened", 0) + 1
                     if len(same) >= 2:
                         _align(obj, same, k, s)
                         if label in SMALL:
