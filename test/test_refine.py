@@ -540,6 +540,38 @@ def test_a_washer_door_decoded_on_top_becomes_the_porthole_door_and_its_dial_goe
     assert not _boxes_overlap(door, dial) and not _boxes_overlap(door, obj.parts[2])
 
 
+def test_a_storage_door_decoded_as_a_box_below_the_drawers_becomes_a_front_panel():
+    """"a wardrobe with three doors and two drawers below them", seed 1: the third door came
+    out as a 35 x 84 x 30 cm box under the drawers, read as lying on the bottom face, and
+    ended a 3 cm slab under the cabinet swinging down. It becomes a door panel on the front,
+    as thick as its sibling doors, hinged about a vertical axis."""
+    def front(name, label, size, centre, jt, axis, origin):
+        return _part(name, label, 0, size, centre, Joint(jt, origin, axis, t_range=(0, 0.3),
+                                                         r_range=(0, 1.5)))
+    R, P = JointType.REVOLUTE, JointType.PRISMATIC
+    obj = ArticulatedObject(category="StorageFurniture", name="wardrobe", parts=[
+        _part("body_0", "body", -1, (0.485, 1.102, 1.974), (0, 0, 1.046)),
+        front("door_0", "door", (0.021, 0.561, 0.629), (0.232, 0.19, 1.225), R, (0, 0, 1),
+              (0.243, 0.471, 1.226)),
+        front("door_1", "door", (0.021, 0.601, 0.569), (0.232, -0.159, 1.303), R, (0, 0, -1),
+              (0.243, -0.459, 1.304)),
+        front("drawer_0", "drawer", (0.406, 0.817, 0.523), (0.04, 0.0, 0.667), P, (1, 0, 0),
+              (0.242, 0.0, 0.668)),
+        front("drawer_1", "drawer", (0.372, 1.134, 0.393), (0.057, 0.0, 0.347), P, (1, 0, 0),
+              (0.242, 0.0, 0.347)),
+        front("door_2", "door", (0.353, 0.836, 0.296), (0.066, 0.0, 0.148), R, (1, 0, 0),
+              (0.242, 0.0, 0.149))])
+    before = _structure(obj)
+    rep = refine_layout(obj)
+    door = obj.parts[5]
+    assert rep["box_doors"] == 1 and _structure(obj) == before
+    assert door.bbox_size[0] == pytest.approx(0.021, abs=0.005)              # a panel
+    assert door.bbox_center[0] + door.bbox_size[0] / 2 > 0.23                # on the front
+    assert abs(door.joint.axis[2]) > 0.99
+    fronts = obj.parts[1:]
+    assert not any(_boxes_overlap(a, b) for n, a in enumerate(fronts) for b in fronts[n + 1:])
+
+
 def _chest(drawers) -> ArticulatedObject:
     """A decoded-like chest: drawers (y, z, width, height) on the front of a 1.13 x 1.58 m
     body, 36 cm deep."""

@@ -32,7 +32,7 @@ from model.core import ArticulatedObject
 from model.data.expected_structure import ARRANGEMENT_KEYS, POSITION_KEYS
 
 from .layout import (CLEAR, GAP, MIN_SIDE, ON_FACE, PANELS, SIDE_HINGED, _lohi, _move_subtree,
-                     _union, face_of, frame_of)
+                     _union, box_doors_to_front, face_of, frame_of)
 
 GAP_SHARE = 0.06       # of a cell's side, between neighbouring cells
 KEY = 0.03             # m: a keypad key's side at most (the data's safe keys: 2.2 cm at most)
@@ -50,6 +50,8 @@ def arrange_stated(obj: ArticulatedObject, spatial: Optional[dict]) -> list[str]
     in place, before the layout refinement. Returns what it did, e.g. ["drawer: 3 x 2",
     "door left of drawer"] (rows x parts in the widest row)."""
     done, grids = [], []
+    if box_doors_to_front(obj):
+        done.append("door: a panel on the front")
     for label, facts in (spatial or {}).items():
         grid = _grid(_sides_as_line(obj, label, facts), sum(p.label == label for p in obj.parts))
         group = _grid_group(obj, label) if grid is not None else None
