@@ -517,7 +517,8 @@ def box_doors_to_front(obj: ArticulatedObject) -> int:
         sides = np.sort(p.bbox_size)
         if face is None or face[0] != 2 or sides[0] <= BOX_DOOR * sides[1]:
             continue
-        sibs = [c for c in obj.children(p.parent) if c != i and obj.parts[c].label in FRONT_LABELS]
+        sibs = [c for c in obj.children(p.parent)
+                if c != i and obj.parts[c].label in ("door", "drawer")]
         faces = [f for f in (face_of(obj, c) for c in sibs) if f is not None and f[0] != 2]
         if not faces:
             continue
@@ -539,9 +540,6 @@ def box_doors_to_front(obj: ArticulatedObject) -> int:
             q.bbox_center[k] = plane + sign * q.bbox_size[k] / 2
         moved += 1
     return moved
-
-
-FRONT_LABELS = ("door", "drawer")
 
 
 def _door_to_front(obj: ArticulatedObject) -> int:
