@@ -1839,3 +1839,27 @@ def test_a_turning_handles_range_starts_where_it_was_meshed():
     ])
     refine_layout(safe)
     assert safe.parts[2].joint.r_range == pytest.approx((0.0, 0.23))
+
+
+def test_a_swivel_cap_of_two_loose_plates_gets_its_end_wall():
+    """"a usb drive with a swivel cover", seeds 0-2: the cap came out as two loose plates, its
+    1 mm end wall under a cell of the grid. The data's U: the plates joined by a wall past the
+    plug's end, away from the pivot; a cap that is already one piece is left alone."""
+    from model.core import meshops
+    from model.refine.meshes import SWIVEL_CLEAR, close_swivel_caps
+    obj = ArticulatedObject(category="USB", name="usb", parts=[
+        _part("body_0", "body", -1, (0.054, 0.018, 0.0096), (0.006, 0, 0.0068)),
+        _part("cap_0", "cap", 0, (0.0574, 0.0207, 0.0136), (0.0062, 0, 0.0068),
+              Joint(JointType.REVOLUTE, (-0.0149, 0.0, 0.0068), (0, 0, 1), r_range=(0, 3.1)))])
+    body = meshops.box((0.054, 0.018, 0.0096), (0.006, 0, 0.0068))
+    plates = meshops.union_manifolds([meshops.box((0.0574, 0.0207, 0.0013), (0.0062, 0, z))
+                                      for z in (0.00065, 0.01295)])
+    mans = {0: body, 1: plates}
+    assert close_swivel_caps(obj, mans) == ["cap_0"]
+    cap = mans[1]
+    assert len(cap.decompose()) == 1
+    lo, hi = np.asarray(cap.bounding_box()).reshape(2, 3)
+    assert hi[0] >= 0.033 + SWIVEL_CLEAR                       # the wall past the plug's end
+    assert lo[0] == pytest.approx(-0.0225, abs=1e-4)           # the pivot end stays open
+    assert meshops.intersection_volume(meshops.to_trimesh(cap), meshops.to_trimesh(body)) < 1e-12
+    assert close_swivel_caps(obj, mans) == []                  # one piece: nothing to close
