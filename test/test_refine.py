@@ -572,11 +572,11 @@ def test_a_storage_door_decoded_as_a_box_below_the_drawers_becomes_a_front_panel
     assert not any(_boxes_overlap(a, b) for n, a in enumerate(fronts) for b in fronts[n + 1:])
 
 
-def _chest(drawers) -> ArticulatedObject:
-    """A decoded-like chest: drawers (y, z, width, height) on the front of a 1.13 x 1.58 m
-    body, 36 cm deep."""
+def _chest(drawers, body=(0.457, 1.134, 1.584)) -> ArticulatedObject:
+    """A decoded-like chest: drawers (y, z, width, height), 36 cm deep, on the front of a
+    body (default 1.13 x 1.58 m)."""
     return ArticulatedObject(category="StorageFurniture", name="chest", parts=[
-        _part("body_0", "body", -1, (0.457, 1.134, 1.584), (0, 0, 0.792))] + [
+        _part("body_0", "body", -1, body, (0, 0, body[2] / 2))] + [
         _part(f"drawer_{n}", "drawer", 0, (0.356, w, h), (0.05, y, z),
               Joint(JointType.PRISMATIC, (0.228, y, z), (1, 0, 0), t_range=(0, 0.3)))
         for n, (y, z, w, h) in enumerate(drawers)])
@@ -603,6 +603,23 @@ def test_columns_of_unequal_counts_become_rows_of_equal_drawers():
                    (0.0, 0.7, 1.05, 0.28), (0.0, 0.4, 1.05, 0.28)])
     assert not refine_layout(kept).get("evened")
     assert len(np.unique(np.round([p.bbox_center[2] for p in kept.parts[1:]], 3))) == 4
+
+
+def test_a_wide_drawer_under_a_column_grows_across_the_front():
+    """"a cabinet with seven drawers", seed 0: two rows of three and a wider drawer under the
+    middle column. Aligned with that column, then kept from growing sideways by the drawers
+    of the rows above, it stayed 37 cm wide on a 1.06 m front, holes either side; it grows
+    across the front below the rows, which keep their three columns."""
+    obj = _chest([(0.306, 0.396, 0.342, 0.179), (0.007, 0.376, 0.304, 0.16),
+                  (-0.355, 0.401, 0.285, 0.174), (0.314, 0.19, 0.295, 0.152),
+                  (0.045, 0.214, 0.274, 0.133), (-0.325, 0.25, 0.311, 0.14),
+                  (0.0, 0.083, 0.488, 0.118)], body=(0.447, 1.06, 0.541))
+    refine_layout(obj)
+    drawers, bottom = obj.parts[1:7], obj.parts[7]
+    assert bottom.bbox_size[1] > 0.9 * sum(p.bbox_size[1] for p in drawers[:3])
+    assert len({round(float(p.bbox_center[1]), 4) for p in drawers}) == 3
+    assert not any(_boxes_overlap(a, b) for n, a in enumerate(obj.parts[1:])
+                   for b in obj.parts[n + 2:])
 
 
 def test_oven_door_fills_its_front_and_stays_clear_of_the_controls():

@@ -29,17 +29,24 @@ def _clusters(values: np.ndarray, tol: float) -> list[list[int]]:
     return groups
 
 
+ALIGN_SPAN = 1.35   # a member this many times its row's median size across it is not of it
+
+
 def _align(obj: ArticulatedObject, members: list[int], k: int, s: float) -> None:
     """Rows and columns of same-label siblings on the face with normal axis ``k`` (outwards
-    along ``s``): members sharing a row get its mean coordinate and mean size across it;
-    the whole group gets its mean depth with its outer sides at their median (a drawer
-    stack stays flush with the face it was attached to)."""
+    along ``s``): members sharing a row get its mean coordinate and mean size across it,
+    except one over ``ALIGN_SPAN`` times the row's median size ("a cabinet with seven
+    drawers": a wide drawer under a column of three was narrowed to the column, holes
+    either side of it); the whole group gets its mean depth with its outer sides at their
+    median (a drawer stack stays flush with the face it was attached to)."""
     parts = [obj.parts[i] for i in members]
     for d in (d for d in range(3) if d != k):
         cs = np.array([p.bbox_center[d] for p in parts])
         sizes = np.array([p.bbox_size[d] for p in parts])
         for g in _clusters(cs, 0.35 * float(np.median(sizes))):
-            if len(g) < 2:
+            mid = float(np.median(sizes[g]))
+            g = [m for m in g if sizes[m] <= ALIGN_SPAN * mid]   # a front wider than its
+            if len(g) < 2:                                      # column spans more of them
                 continue
             c, size = float(cs[g].mean()), float(sizes[g].mean())
             for m in g:
@@ -596,8 +603,8 @@ def _fill(obj: ArticulatedObject, parent: int, members: list[int], k: int,
     front, where the data's fronts cover 93 % (storage, median) of the rectangle they span,
     and that rectangle reaches to the category's frame (``FILL_FRAME``) of the carcass
     (a storage front's bottom only where the prompt lays it out, ``_stated_down_to_bottom``).
-    Vertical extents first, then horizontal (past the small parts above or below it at its
-    new height); a part grows towards a front wholly beyond it only to the middle of the gap
+    Vertical extents first, then horizontal (past the parts above or below it at its new
+    height); a part grows towards a front wholly beyond it only to the middle of the gap
     between them (``GAP`` apart), and towards a knob, dial, button or handle on its face
     only to ``_clearance`` of it, so every front above, below, left or right of another stays
     so, and every small part beside it; nothing shrinks. A tray it now covers goes in behind it
@@ -636,7 +643,7 @@ def _fill(obj: ArticulatedObject, parent: int, members: list[int], k: int,
             clear = _clearance(obj.parts[i], d)
             for j in fronts + fixed:   # any part wholly beyond i along d stays beyond it, so
                 jl, jh = box[j]         # what is above, below, left or right of what keeps so
-                if j == i or n and j not in start and not _beside(box[i], box[j], axes[0]):
+                if j == i or n and not _beside(box[i], box[j], axes[0]):
                     continue
                 # touching within a tenth of the smaller side still counts as beyond
                 tol = BEYOND * min(hi[d] - lo[d], jh[d] - jl[d]) + 1e-6
@@ -771,9 +778,10 @@ def _oven_panel(obj: ArticulatedObject, par: int, members: list[int], k: int,
 
 def _beside(a: tuple, b: tuple, d: int) -> bool:
     """Whether boxes ``a`` and ``b`` ((lo, hi) each) overlap in extent along axis ``d``: a
-    front grown to its height (the fill's first pass) meets sideways only the knobs, dials,
-    buttons and handles that stand beside it, not those above it (an oven door 3 cm wide
-    under a row of knobs and buttons stayed a 3 cm pole); other fronts it always meets."""
+    front grown to its height (the fill's first pass) meets sideways only the parts that
+    stand beside it, not those above or below it (an oven door 3 cm wide under a row of
+    knobs and buttons stayed a 3 cm pole; "a cabinet with seven drawers" kept its one bottom
+    drawer as narrow as the column of drawers above it, holes either side)."""
     return bool(a[0][d] < b[1][d] - 1e-6 and b[0][d] < a[1][d] - 1e-6)
 
 
