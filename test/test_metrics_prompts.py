@@ -204,6 +204,12 @@ def test_parse_free_form(prompt, category, counts, lower, joints):
      "drawer.layout=row"),
     ("a wardrobe with two doors and one drawer along the bottom",     # no row of one
      "StorageFurniture door=2 drawer=1 drawer.vpos=bottom"),
+    # "on each side" / "on both sides" of the object is one left and one right; "on either
+    # side of the dial" is about the dial
+    ("a bookcase with a door on each side", "StorageFurniture door=2 door.hpos=left/right"),
+    ("a cabinet with drawers on both sides and a door in the middle", "StorageFurniture door=1 "
+     "drawer>=2 drawer.hpos=left/right door.hpos=middle"),
+    ("a washer with a button on either side of the dial", "WashingMachine button=2 dial=1"),
 ])
 def test_parse_spatial_wordings(prompt, line):
     assert parse_prompt(prompt).to_json() == ExpectedStructure.from_line(line).to_json()

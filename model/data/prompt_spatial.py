@@ -244,8 +244,10 @@ _SPATIAL_PATTERNS: list[tuple[str, str, str]] = [
     ("sideof", r"\b(?:to|on|at) the (left|right)(?:[- ]hand)?(?: side)? of\b(?: (?:the|a|an|its|their|both))?", "post"),
     ("hpos", r"\b(?:the |its )?(left|right)[- ](?:hand )?half (?:is|has|holds|contains|with|:)", "pre"),
     ("hpos", r"\b(?:on|at|to|in) the (left|right)(?:[- ]hand)?(?: side| end| half)?\b", "post"),
-    # "a door at each end (of the sideboard)": one on the left, one on the right
-    ("hpos=left+hpos=right", r"\b(?:at|on) (?:each|either|both) ends?\b", "post"),
+    # "a door at each end (of the sideboard)", "drawers on both sides": one on the left, one
+    # on the right ("a button on either side of the dial" is about the dial, not the body)
+    ("hpos=left+hpos=right", r"\b(?:at|on) (?:each|either|both) ends?\b"
+                             r"|\b(?:at|on) (?:each|either|both) sides?\b(?! of)", "post"),
     ("hpos=middle", r"\b(?:(?:sits? |placed |set )?(?:in|at) the (?:middle|cent(?:er|re))"
                     r"(?: of (?:the |its |their )?(?:front|door|panel|control panel|console|body))?"
                     r"|cent(?:er|re)d(?: on (?:the |its )?(?:front|door|panel))?)\b"
