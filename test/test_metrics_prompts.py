@@ -204,6 +204,9 @@ def test_parse_free_form(prompt, category, counts, lower, joints):
      "drawer.layout=row"),
     ("a wardrobe with two doors and one drawer along the bottom",     # no row of one
      "StorageFurniture door=2 drawer=1 drawer.vpos=bottom"),
+    # a list of controls shares its row; a list of fronts leaves it to the last one
+    ("a stove with 5 knobs and 2 buttons along the top", "Oven knob=5 button=2 knob.vpos=top "
+     "knob.layout=row button.vpos=top button.layout=row"),
     # "on each side" / "on both sides" of the object is one left and one right; "on either
     # side of the dial" is about the dial
     ("a bookcase with a door on each side", "StorageFurniture door=2 door.hpos=left/right"),

@@ -268,6 +268,18 @@ _PRE_SIDE = {"left": ("hpos", "left"), "right": ("hpos", "right"), "left-hand": 
              "upper": ("vpos", "top"), "lower": ("vpos", "bottom")}
 
 
+def _listed_before(toks: list[_Tok], at: int) -> list[_Tok]:
+    """The parts of the list that ends right before character ``at`` ("5 knobs and 2
+    buttons"): part nouns with their counts, joined by "and" or commas."""
+    out: list[_Tok] = []
+    for t in reversed([t for t in toks if t.end <= at]):
+        if t.kind == "PART":
+            out.append(t)
+        elif not (t.kind in ("NUM", "DET", "MULT") or t.text in ("and", ",")):
+            break
+    return out[::-1]
+
+
 def _spatial_facts(sentence: str, toks: list[_Tok]) -> list[_Fact]:
     """Every spatial phrase of a sentence (spans of earlier patterns are not re-read)."""
     work = sentence
@@ -327,10 +339,16 @@ def _spatial_facts(sentence: str, toks: list[_Tok]) -> list[_Fact]:
                     facts.append(_Fact(k2, [v2], a, b, mode))
             elif key == "vpos+row":      # "along the top", "in the lower row"
                 side = {"upper": "top", "lower": "bottom"}.get(vals[0], vals[0])
-                facts.append(_Fact("vpos", [side], a, b, mode))
-                said_of = [t for t in toks if t.end <= a and t.kind == "PART"][-1:]
-                if not said_of or said_of[0].plural:   # "one drawer along the bottom": no row
-                    facts.append(_Fact("layout", ["row"], a, b, mode))
+                listed = _listed_before(toks, a)   # "5 knobs and 2 buttons along the top"
+                if len(listed) < 2 or any(t.value not in CONTROLS for t in listed):
+                    listed = []        # "two doors and one drawer along the bottom": the drawer
+                nearest = [t for t in toks if t.end <= a and t.kind == "PART"][-1:]
+                for t in listed or [None]:
+                    at, to = (a, b) if t is None else (t.end, t.end)
+                    facts.append(_Fact("vpos", [side], at, to, mode))
+                    of = t if t is not None else (nearest[0] if nearest else None)
+                    if of is None or of.plural:    # "one drawer along the bottom": no row
+                        facts.append(_Fact("layout", ["row"], at, to, mode))
             elif key == "vpos+hpos":
                 facts.append(_Fact("vpos", [vals[0]], a, b, mode))
                 side = "middle" if vals[1].startswith("cent") else vals[1]
