@@ -572,62 +572,6 @@ def add_control_panels(obj: ArticulatedObject, mans: dict, depth: float = PANEL)
 
 
 CLOSED_FRONTS = ("Oven",)   # categories whose front is closed around its doors and drawers
-SWIVEL_WALL = (0.0008, 0.002)   # m: the data's swivel caps' plates and end wall, 0.8-1.5 mm
-SWIVEL_CLEAR = 0.001            # m: the end wall stands this far past the stick's end
-
-
-def _slab(lo, hi, d: int, a: float, b: float):
-    """The box ``lo``..``hi`` with its extent along axis ``d`` replaced by ``a``..``b``."""
-    lo, hi = np.array(lo, dtype=np.float64), np.array(hi, dtype=np.float64)
-    lo[d], hi[d] = min(a, b), max(a, b)
-    return meshops.box(hi - lo, (lo + hi) / 2)
-
-
-def close_swivel_caps(obj: ArticulatedObject, mans: dict) -> list[str]:
-    """A USB stick's swivel cap is two plates joined by a wall across the stick's plug end in
-    every object of the data; the wall (under 1.5 mm) is thinner than a cell of the part's
-    grid, so a decoded cap comes out as two loose plates. A swivel cap (turning about an
-    axis across the stick) whose mesh is two or more pieces apart along that axis gets the
-    wall: as thick as its plates, spanning them along the axis and across the stick, at its
-    end away from the pivot, ``SWIVEL_CLEAR`` past the stick's far end (or the plates' end,
-    if that is farther; plates that end short of it are lengthened to it), so the swing
-    clears the plug as the data's does. Returns the caps closed."""
-    from .layout import _principal
-    closed = []
-    for i, p in enumerate(obj.parts):
-        if obj.category != "USB" or p.label != "cap" or p.parent < 0 or i not in mans \
-                or p.parent not in mans or not p.joint.type.rotates:
-            continue
-        k = _principal(p.joint.axis)[0]
-        body = obj.parts[p.parent]
-        long = int(np.argmax(body.bbox_size))
-        pieces = mans[i].decompose()
-        if k == long or len(pieces) < 2:
-            continue
-        boxes = [np.asarray(m.bounding_box()).reshape(2, 3) for m in pieces]
-        if max(b[0][k] for b in boxes) < min(b[1][k] for b in boxes):
-            continue                          # the pieces overlap along the axis: no plates
-        lo = np.min([b[0] for b in boxes], axis=0)
-        hi = np.max([b[1] for b in boxes], axis=0)
-        blo, bhi = np.asarray(mans[p.parent].bounding_box()).reshape(2, 3)
-        t = float(np.clip(np.median([b[1][k] - b[0][k] for b in boxes]), *SWIVEL_WALL))
-        pivot = float(np.asarray(p.joint.origin, dtype=np.float64)[long])
-        far = 1.0 if (hi[long] - pivot) >= (pivot - lo[long]) else -1.0
-        end = max(hi[long], bhi[long] + SWIVEL_CLEAR) if far > 0 else \
-            min(lo[long], blo[long] - SWIVEL_CLEAR)
-        parts = [mans[i], _slab(lo, hi, long, end - far * t / 2, end + far * t)]
-        for b in boxes:                # plates that end short of the wall reach it
-            near = b[1][long] if far > 0 else b[0][long]
-            if (end - near) * far > 0:
-                parts.append(_slab(b[0], b[1], long, near - far * t, end + far * t / 2))
-        joined = meshops.union_manifolds(parts)
-        if len(joined.decompose()) >= len(pieces):
-            continue
-        mans[i] = joined
-        closed.append(p.name)
-    return closed
-
-
 CLOSED_SIDES = ("WashingMachine",)   # categories whose side faces without a front are closed
 OPEN_FACE = 0.75            # a side face whose outer PANEL covers less of its outline is open
 FRONT_INSET = 0.001         # m: the plate stays this far inside the body's outline and face
@@ -690,6 +634,62 @@ def close_fronts(obj: ArticulatedObject, mans: dict, depth: float = PANEL) -> li
             continue
         mans[par] = body
         closed.append(f"{obj.parts[par].name}:{'xyz'[k]}{'+' if s > 0 else '-'}")
+    return closed
+
+
+SWIVEL_WALL = (0.0008, 0.002)   # m: the data's swivel caps' plates and end wall, 0.8-1.5 mm
+SWIVEL_CLEAR = 0.001            # m: the end wall stands this far past the stick's end
+
+
+def _slab(lo, hi, d: int, a: float, b: float):
+    """The box ``lo``..``hi`` with its extent along axis ``d`` replaced by ``a``..``b``."""
+    lo, hi = np.array(lo, dtype=np.float64), np.array(hi, dtype=np.float64)
+    lo[d], hi[d] = min(a, b), max(a, b)
+    return meshops.box(hi - lo, (lo + hi) / 2)
+
+
+def close_swivel_caps(obj: ArticulatedObject, mans: dict) -> list[str]:
+    """A USB stick's swivel cap is two plates joined by a wall across the stick's plug end in
+    every object of the data; the wall (under 1.5 mm) is thinner than a cell of the part's
+    grid, so a decoded cap comes out as two loose plates. A swivel cap (turning about an
+    axis across the stick) whose mesh is two or more pieces apart along that axis gets the
+    wall: as thick as its plates, spanning them along the axis and across the stick, at its
+    end away from the pivot, ``SWIVEL_CLEAR`` past the stick's far end (or the plates' end,
+    if that is farther; plates that end short of it are lengthened to it), so the swing
+    clears the plug as the data's does. Returns the caps closed."""
+    from .layout import _principal
+    closed = []
+    for i, p in enumerate(obj.parts):
+        if obj.category != "USB" or p.label != "cap" or p.parent < 0 or i not in mans \
+                or p.parent not in mans or not p.joint.type.rotates:
+            continue
+        k = _principal(p.joint.axis)[0]
+        body = obj.parts[p.parent]
+        long = int(np.argmax(body.bbox_size))
+        pieces = mans[i].decompose()
+        if k == long or len(pieces) < 2:
+            continue
+        boxes = [np.asarray(m.bounding_box()).reshape(2, 3) for m in pieces]
+        if max(b[0][k] for b in boxes) < min(b[1][k] for b in boxes):
+            continue                          # the pieces overlap along the axis: no plates
+        lo = np.min([b[0] for b in boxes], axis=0)
+        hi = np.max([b[1] for b in boxes], axis=0)
+        blo, bhi = np.asarray(mans[p.parent].bounding_box()).reshape(2, 3)
+        t = float(np.clip(np.median([b[1][k] - b[0][k] for b in boxes]), *SWIVEL_WALL))
+        pivot = float(np.asarray(p.joint.origin, dtype=np.float64)[long])
+        far = 1.0 if (hi[long] - pivot) >= (pivot - lo[long]) else -1.0
+        end = max(hi[long], bhi[long] + SWIVEL_CLEAR) if far > 0 else \
+            min(lo[long], blo[long] - SWIVEL_CLEAR)
+        parts = [mans[i], _slab(lo, hi, long, end - far * t / 2, end + far * t)]
+        for b in boxes:                # plates that end short of the wall reach it
+            near = b[1][long] if far > 0 else b[0][long]
+            if (end - near) * far > 0:
+                parts.append(_slab(b[0], b[1], long, near - far * t, end + far * t / 2))
+        joined = meshops.union_manifolds(parts)
+        if len(joined.decompose()) >= len(pieces):
+            continue
+        mans[i] = joined
+        closed.append(p.name)
     return closed
 
 
