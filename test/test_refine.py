@@ -1880,3 +1880,21 @@ def test_a_swivel_cap_of_two_loose_plates_gets_its_end_wall():
     assert lo[0] == pytest.approx(-0.0225, abs=1e-4)           # the pivot end stays open
     assert meshops.intersection_volume(meshops.to_trimesh(cap), meshops.to_trimesh(body)) < 1e-12
     assert close_swivel_caps(obj, mans) == []                  # one piece: nothing to close
+
+
+def test_a_bottle_flip_lid_is_hinged_at_its_underside():
+    """A flip lid turns about its back edge where it meets the neck, as the data's do (on the
+    collar's edge, model/data/synth/handheld.py): hinged on its top face, "a bottle with a
+    flip lid" lifted 1 cm off the rim as it opened."""
+    obj = ArticulatedObject(category="Bottle", name="bottle", parts=[
+        _part("body_0", "body", -1, (0.064, 0.063, 0.253), (0, 0, 0.1265)),
+        _part("lid_0", "lid", 0, (0.044, 0.039, 0.01), (0.004, 0, 0.258),
+              Joint(JointType.REVOLUTE, (-0.018, 0, 0.253), (0.02, -1, 0.01), r_range=(0, 2.0)))])
+    refine_layout(obj)
+    lid = obj.parts[1]
+    lo, hi = lid.bbox_center - lid.bbox_size / 2, lid.bbox_center + lid.bbox_size / 2
+    assert lid.joint.origin[2] == pytest.approx(lo[2], abs=1e-6)          # its underside
+    assert lid.joint.origin[0] == pytest.approx(lo[0], abs=1e-6)          # its back edge
+    top = lid.bbox_center + np.array([lid.bbox_size[0] / 2, 0, 0])        # the free edge
+    axis = np.asarray(lid.joint.axis)
+    assert np.cross(axis, top - lid.joint.origin)[2] > 0                  # opens upwards

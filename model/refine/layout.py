@@ -194,6 +194,8 @@ def _hinge(obj: ArticulatedObject, i: int, face: tuple[int, float]) -> None:
         side = hi[u] if away < 0 else lo[u]
     origin = p.bbox_center.copy()
     origin[k] = hi[k] if s > 0 else lo[k]
+    if obj.category == "Bottle":      # a flip lid sits on its neck: hinged at its underside,
+        origin[k] = lo[k] if s > 0 else hi[k]    # as the data's are (on the collar's edge)
     origin[u] = side
     axis = np.eye(3)[a]
     free = p.bbox_center.copy()
