@@ -63,6 +63,11 @@ CASES = [
      {"button": 4}, {}),
     ("a cabinet with three or more drawers and no fewer than 2 doors", "StorageFurniture", {},
      {"drawer": 3, "door": 2}, {}),
+    # "each of its N parts": the N parts are counted as said, one per each of them
+    ("a sideboard with a drawer over each of its two doors", "StorageFurniture",
+     {"drawer": 2, "door": 2}, {}, {}),
+    ("a cabinet with a knob on each of its three drawers", "StorageFurniture",
+     {"knob": 3, "drawer": 3}, {}, {}),
 ]
 
 
