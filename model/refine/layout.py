@@ -193,9 +193,10 @@ def _hinge(obj: ArticulatedObject, i: int, face: tuple[int, float]) -> None:
     if away:             # a pair of doors: each hinged on its outer edge, swinging apart
         side = hi[u] if away < 0 else lo[u]
     origin = p.bbox_center.copy()
-    origin[k] = hi[k] if s > 0 else lo[k]
-    if obj.category == "Bottle":      # a flip lid sits on its neck: hinged at its underside,
-        origin[k] = lo[k] if s > 0 else hi[k]    # as the data's are (on the collar's edge)
+    # on the outer face; a bottle's flip lid, which sits on its neck, on its underside (as
+    # the data's are: on the collar's edge)
+    outer = (s > 0) != (obj.category == "Bottle")
+    origin[k] = hi[k] if outer else lo[k]
     origin[u] = side
     axis = np.eye(3)[a]
     free = p.bbox_center.copy()
@@ -610,17 +611,13 @@ def _washer_controls_to_front(obj: ArticulatedObject) -> int:
     if not any(p.label == "door" and p.parent == root and face_of(obj, i) == (0, 1.0)
                for i, p in enumerate(obj.parts)):
         return 0
-    cx = obj.parts[root].bbox_center[0]
+    centre = obj.parts[root].bbox_center
     moved = 0
     for i, p in enumerate(obj.parts):
         if p.parent != root or p.label not in ("dial", "knob", "button") \
                 or face_of(obj, i) != (0, -1.0):
             continue
-        for q in (obj.parts[d] for d in obj.subtree(i)):
-            q.bbox_center = q.bbox_center * np.array([-1.0, 1.0, 1.0]) + np.array([2 * cx, 0, 0])
-            o = np.asarray(q.joint.origin, dtype=np.float64)
-            q.joint.origin = np.array([2 * cx - o[0], o[1], o[2]])
-            q.joint.axis = np.asarray(q.joint.axis, dtype=np.float64) * np.array([-1.0, 1, 1])
+        _turn_subtree(obj, i, centre, np.diag([-1.0, 1.0, 1.0]))     # back to front
         moved += 1
     return moved
 

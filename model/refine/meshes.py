@@ -659,9 +659,11 @@ def close_swivel_caps(obj: ArticulatedObject, mans: dict) -> list[str]:
     clears the plug as the data's does. Returns the caps closed."""
     from .layout import _principal
     closed = []
+    if obj.category != "USB":
+        return closed
     for i, p in enumerate(obj.parts):
-        if obj.category != "USB" or p.label != "cap" or p.parent < 0 or i not in mans \
-                or p.parent not in mans or not p.joint.type.rotates:
+        if p.label != "cap" or p.parent < 0 or i not in mans or p.parent not in mans \
+                or not p.joint.type.rotates:
             continue
         k = _principal(p.joint.axis)[0]
         body = obj.parts[p.parent]
