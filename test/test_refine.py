@@ -1882,6 +1882,33 @@ def test_a_swivel_cap_of_two_loose_plates_gets_its_end_wall():
     assert close_swivel_caps(obj, mans) == []                  # one piece: nothing to close
 
 
+def test_a_slide_cap_of_two_plates_gets_its_sleeve_walls():
+    """"a usb stick with a cap", seeds 2, 6, 7: the slide-off cap came out as its top and
+    bottom plates, the 1 mm side and end walls under a cell of the grid. The data's cap is a
+    sleeve open towards the stick: the two sides and the far end are added, as thick as the
+    plates, clear of the stick; a whole sleeve is left alone."""
+    from model.core import meshops
+    from model.refine.meshes import close_slide_caps, face_cover
+    obj = ArticulatedObject(category="USB", name="usb", parts=[
+        _part("body_0", "body", -1, (0.052, 0.018, 0.0096), (0.0, 0, 0.0068)),
+        _part("cap_0", "cap", 0, (0.021, 0.0226, 0.0136), (0.0285, 0, 0.0068),
+              Joint(JointType.PRISMATIC, (0.038, 0.0, 0.0068), (1, 0, 0), t_range=(0, 0.015)))])
+    body = meshops.union_manifolds([meshops.box((0.04, 0.018, 0.0096), (-0.006, 0, 0.0068)),
+                                    meshops.box((0.012, 0.012, 0.0045), (0.02, 0, 0.0068))])
+    plates = meshops.union_manifolds([meshops.box((0.021, 0.0226, 0.0012), (0.0285, 0, z))
+                                      for z in (0.0006, 0.013)])
+    mans = {0: body, 1: plates}
+    assert close_slide_caps(obj, mans) == ["cap_0"]
+    cap = mans[1]
+    assert len(cap.decompose()) == 1
+    for k, s in ((1, 1), (1, -1), (0, 1), (2, 1), (2, -1)):     # four sides and the far end
+        assert face_cover(cap, k, s, 0.003) > 0.95
+    assert face_cover(cap, 0, -1, 0.003) < 0.5                   # open towards the stick
+    assert float(cap.volume()) - float(plates.volume()) > 2 * 0.021 * 0.0136 * 0.001
+    assert meshops.intersection_volume(meshops.to_trimesh(cap), meshops.to_trimesh(body)) < 1e-12
+    assert close_slide_caps(obj, mans) == []                     # a whole sleeve
+
+
 def test_a_bottle_flip_lid_is_hinged_at_its_underside():
     """A flip lid turns about its back edge where it meets the neck, as the data's do (on the
     collar's edge, model/data/synth/handheld.py): hinged on its top face, "a bottle with a

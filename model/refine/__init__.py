@@ -66,6 +66,7 @@ def refine_meshes(obj: ArticulatedObject, config: Optional[RefineConfig] = None,
         report["control_panels"] = M.add_control_panels(obj, mans)
         report["fronts_closed"] = M.close_fronts(obj, mans)
         report["swivel_caps_closed"] = M.close_swivel_caps(obj, mans)
+        report["slide_caps_closed"] = M.close_slide_caps(obj, mans)
         report["console_controls"] = M.seat_console_controls(obj, mans)
     if cfg.carve:
         carved = M.carve_parents(obj, mans)

@@ -695,6 +695,56 @@ def close_swivel_caps(obj: ArticulatedObject, mans: dict) -> list[str]:
     return closed
 
 
+SLEEVE_COVER = 0.6    # a slide cap's wall covers its box face 0.92-1.0 when decoded whole
+SLEEVE_PROBE = 0.003  # m: the outer depth of a face in which its wall is looked for
+
+
+def _wall_thickness(man, k: int, sgn: int) -> float:
+    """Mean thickness of Manifold ``man``'s wall on its box face (axis ``k``, side ``sgn``):
+    the volume of its outer ``SLEEVE_PROBE`` over the area that covers, seen along the axis."""
+    lo, hi = np.asarray(man.bounding_box()).reshape(2, 3)
+    plane = hi[k] if sgn > 0 else lo[k]
+    slab = man ^ _slab(lo, hi, k, plane, plane - sgn * SLEEVE_PROBE)
+    a, b = [i for i in range(3) if i != k]
+    area = face_cover(man, k, sgn, SLEEVE_PROBE) * (hi[a] - lo[a]) * (hi[b] - lo[b])
+    return float(slab.volume()) / area if area > 0 else 0.0
+
+
+def close_slide_caps(obj: ArticulatedObject, mans: dict) -> list[str]:
+    """A USB stick's slide-off cap is a sleeve in every object of the data: four walls along
+    the slide and an end wall away from the stick, 0.8-2 mm thick, open towards the stick.
+    Walls that thin are under a cell of the part's grid, so a decoded cap came out as its top
+    and bottom plates alone ("a usb stick with a cap", seeds 0-7: 3 of 8). Each wall of a
+    slide cap whose outer ``SLEEVE_PROBE`` covers under ``SLEEVE_COVER`` of its box face is
+    added over the whole face, as thick as the cap's walls that are there (within
+    ``SWIVEL_WALL``), less the stick's mesh. A cap with no wall of the sleeve is left alone.
+    Returns the caps closed."""
+    from .layout import _principal
+    closed = []
+    if obj.category != "USB":
+        return closed
+    for i, p in enumerate(obj.parts):
+        if p.label != "cap" or p.parent < 0 or i not in mans or p.parent not in mans \
+                or p.joint.type != JointType.PRISMATIC:
+            continue
+        k = _principal(p.joint.axis)[0]
+        cap, body = mans[i], mans[p.parent]
+        lo, hi = np.asarray(cap.bounding_box()).reshape(2, 3)
+        blo, bhi = np.asarray(body.bounding_box()).reshape(2, 3)
+        far = 1 if lo[k] + hi[k] >= blo[k] + bhi[k] else -1
+        faces = [(d, s) for d in range(3) if d != k for s in (1, -1)] + [(k, far)]
+        missing = [f for f in faces if face_cover(cap, *f, SLEEVE_PROBE) < SLEEVE_COVER]
+        if not missing or len(missing) == len(faces):
+            continue
+        t = float(np.clip(np.median([_wall_thickness(cap, *f) for f in faces
+                                     if f not in missing]), *SWIVEL_WALL))
+        walls = [_slab(lo, hi, d, (hi if s > 0 else lo)[d], (hi if s > 0 else lo)[d] - s * t)
+                 for d, s in missing]
+        mans[i] = meshops.union_manifolds([cap, meshops.union_manifolds(walls) - body])
+        closed.append(p.name)
+    return closed
+
+
 def face_cover(man, k: int, sgn: int, depth: float) -> float:
     """Share of the outline of Manifold ``man``'s box face (axis ``k``, side ``sgn``) that
     its outer ``depth`` covers, seen along the axis."""
@@ -893,7 +943,7 @@ def _merged_closed(mesh) -> bool:
     return bool(m.is_watertight)
 
 
-__all__ = ["revolved_sweep", "vessel_collision", "add_runners", "round_collision", "close_fronts",
+__all__ = ["revolved_sweep", "vessel_collision", "add_runners", "round_collision", "close_fronts", "close_slide_caps",
            "face_cover", "seat_console_controls",
            "drop_floaters", "simplify_to_budget", "first_step", "carve_parents",
            "carve_collision", "shrink_limits", "swept_hull", "manifolds_of", "store"]
