@@ -695,7 +695,7 @@ def close_swivel_caps(obj: ArticulatedObject, mans: dict) -> list[str]:
     return closed
 
 
-SLEEVE_COVER = 0.6    # a slide cap's wall covers its box face 0.92-1.0 when decoded whole
+SLEEVE_COVER = 0.9    # a slide cap's wall covers its box face 0.92-1.0 when decoded whole
 SLEEVE_PROBE = 0.003  # m: the outer depth of a face in which its wall is looked for
 
 
