@@ -1909,6 +1909,30 @@ def test_a_slide_cap_of_two_plates_gets_its_sleeve_walls():
     assert close_slide_caps(obj, mans) == []                     # a whole sleeve
 
 
+def test_a_bottle_body_ends_under_its_flip_lid():
+    """"a shampoo bottle with a flip cap", seed 0: the body's neck rose 1.9 cm into a thick
+    lid, and carving the lid's sweep out of it left a shard standing in the open lid. The
+    body ends LID_SEAT under the lid, over the lid's outline; a lid sunk into the body's
+    shoulder (a cut of over MAX_TRIM of the body) is left to the other steps."""
+    from model.core import meshops
+    from model.refine.meshes import LID_SEAT, seat_lids
+    obj = ArticulatedObject(category="Bottle", name="bottle", parts=[
+        _part("body_0", "body", -1, (0.097, 0.097, 0.261), (0, 0, 0.1305)),
+        _part("lid_0", "lid", 0, (0.06, 0.058, 0.025), (0, 0, 0.2545),
+              Joint(JointType.REVOLUTE, (0, 0.029, 0.242), (-1, 0, 0), r_range=(0, 2.8)))])
+    body = meshops.union_manifolds([meshops.cylinder(0.0485, 0.2, (0, 0, 0.1)),
+                                    meshops.cylinder(0.027, 0.062, (0, 0, 0.23))])
+    lid = meshops.cylinder(0.03, 0.025, (0, 0, 0.2545)) - meshops.box((0.02, 0.03, 0.02),
+                                                                      (0.02, 0, 0.25))
+    mans = {0: body, 1: lid}
+    assert seat_lids(obj, mans) == ["lid_0"]
+    lo, hi = np.asarray(mans[0].bounding_box()).reshape(2, 3)
+    assert hi[2] == pytest.approx(0.242 - LID_SEAT, abs=1e-6)
+    assert float(mans[0].volume()) > 0.95 * float(body.volume())
+    mans = {0: body, 1: lid.translate((0, 0, -0.08))}              # down in the shoulder
+    assert seat_lids(obj, mans) == [] and mans[0] is body
+
+
 def test_a_bottle_flip_lid_is_hinged_at_its_underside():
     """A flip lid turns about its back edge where it meets the neck, as the data's do (on the
     collar's edge, model/data/synth/handheld.py): hinged on its top face, "a bottle with a
