@@ -1882,6 +1882,37 @@ def test_a_swivel_cap_of_two_loose_plates_gets_its_end_wall():
     assert close_swivel_caps(obj, mans) == []                  # one piece: nothing to close
 
 
+def _drawer_with_handles(name, y, handles, parent_index, first_index):
+    drawer = _part(name, "drawer", 0, (0.4, 0.45, 0.25), (0.05, y, 0.4),
+                   Joint(JointType.PRISMATIC, (0.25, y, 0.4), (1, 0, 0), t_range=(0, 0.3)))
+    at = [(0.265, y + 0.02 * k, 0.4 + 0.07 * k) for k in range(handles)]
+    kids = [_part(f"handle_{first_index + k}", "handle", parent_index, (0.03, 0.03, 0.03), c,
+                  Joint(origin=np.array(c))) for k, c in enumerate(at)]
+    return drawer, kids
+
+
+def test_handles_heaped_on_one_drawer_are_shared_out():
+    """"a chest of drawers with 4 drawers, each having two knobs", seeds 0-1: eight handles,
+    five of them stacked in a column on one drawer. The fronts share them (two each here),
+    side by side across each drawer at one height; an even share is left as it is."""
+    from model.refine.layout import share_handles
+    d0, k0 = _drawer_with_handles("drawer_0", 0.24, 3, 1, 0)
+    d1, k1 = _drawer_with_handles("drawer_1", -0.24, 1, 2, 3)
+    obj = ArticulatedObject(category="StorageFurniture", name="chest", parts=[
+        _part("body_0", "body", -1, (0.5, 1.0, 0.8), (0, 0, 0.4)), d0, d1, *k0, *k1])
+    assert share_handles(obj) == 1
+    for f, y in ((1, 0.24), (2, -0.24)):
+        kids = [obj.parts[c] for c in obj.children(f)]
+        assert len(kids) == 2
+        ys = sorted(h.bbox_center[1] for h in kids)
+        assert ys == pytest.approx([y - 0.1125, y + 0.1125])        # quarters of the front
+        assert kids[0].bbox_center[2] == pytest.approx(kids[1].bbox_center[2])
+        assert all(h.bbox_center[0] == pytest.approx(0.265) for h in kids)
+        for h in kids:                              # the fixed joint moves with the handle
+            assert h.joint.origin == pytest.approx(h.bbox_center)
+    assert share_handles(obj) == 0
+
+
 def test_a_slide_cap_of_two_plates_gets_its_sleeve_walls():
     """"a usb stick with a cap", seeds 2, 6, 7: the slide-off cap came out as its top and
     bottom plates, the 1 mm side and end walls under a cell of the grid. The data's cap is a

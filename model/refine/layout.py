@@ -794,6 +794,71 @@ def _slim_handles(obj: ArticulatedObject) -> int:
     return n
 
 
+def share_handles(obj: ArticulatedObject) -> int:
+    """A parent's door and drawer handles shared out over its moving doors and drawers when
+    one holds at least two more than another: every front of the data has one handle at
+    most, and a tree given more handles than that (the reader's count for "a chest of
+    drawers with 4 drawers, each having two knobs": 8) put five on one drawer, stacked in a
+    column, and one on each of the others. The fronts with the most keep theirs (the count
+    each gets differs by one at most); a handle moved to another front keeps its depth off
+    the front. A front's handles are then laid out centred on it: side by side across a
+    drawer, one above the other along a door (free_edge_handles moves them to the free edge
+    later). -> handles moved to another front."""
+    moved = 0
+    for r in range(len(obj.parts)):
+        fronts = [c for c in obj.children(r) if obj.parts[c].label in ("drawer", "door")
+                  and obj.parts[c].joint.type != JointType.FIXED]
+        held = {f: [h for h in obj.children(f) if obj.parts[h].label == "handle"
+                    and not obj.children(h)] for f in fronts}
+        if len(fronts) < 2 or max(map(len, held.values())) - min(map(len, held.values())) < 2:
+            continue
+        order = sorted(fronts, key=lambda f: -len(held[f]))
+        base, extra = divmod(sum(map(len, held.values())), len(fronts))
+        want = {f: base + (k < extra) for k, f in enumerate(order)}
+        spare = [h for f in order for h in held[f][want[f]:]]
+        for f in order:
+            held[f] = held[f][:want[f]]
+            while len(held[f]) < want[f]:
+                c = spare.pop(0)
+                h = obj.parts[c]
+                old, new = obj.parts[h.parent], obj.parts[f]
+                centre = h.bbox_center - old.bbox_center + new.bbox_center
+                h.joint.origin = np.asarray(h.joint.origin, dtype=np.float64) + centre \
+                    - h.bbox_center
+                h.bbox_center, h.parent = centre, f
+                held[f].append(c)
+                moved += 1
+        for f in fronts:
+            _row_of_handles(obj, f, held[f])
+    return moved
+
+
+def _row_of_handles(obj: ArticulatedObject, f: int, handles: list[int]) -> None:
+    """Handles ``handles`` of front ``f`` in equal cells across it (a drawer) or along it (a
+    door), each centred in its cell, level with the first (the front's own) and of its size
+    (within 80 % of a cell); one handle is left where it is."""
+    if len(handles) < 2:
+        return
+    p = obj.parts[f]
+    face = face_of(obj, f)
+    if face is None:
+        return
+    across = [a for a in (0, 1, 2) if a != face[0] and a != 2]
+    ax = 2 if p.label == "door" or not across else across[0]
+    lo, hi = _lohi(p)
+    cell = (hi[ax] - lo[ax]) / len(handles)
+    first = obj.parts[handles[0]]
+    level, size = first.bbox_center.copy(), first.bbox_size.copy()
+    size[ax] = min(size[ax], 0.8 * cell)
+    for k, c in enumerate(sorted(handles, key=lambda c: obj.parts[c].bbox_center[ax])):
+        h = obj.parts[c]
+        centre = level.copy()
+        centre[ax] = lo[ax] + (k + 0.5) * cell
+        h.bbox_size = size.copy()
+        h.joint.origin = np.asarray(h.joint.origin, dtype=np.float64) + centre - h.bbox_center
+        h.bbox_center = centre
+
+
 def refine_layout(obj: ArticulatedObject, config: Optional[LayoutConfig] = None,
                   stated: Optional[dict] = None) -> dict:
     """Refine ``obj``'s boxes and joints in place (before meshing); returns what changed.
@@ -825,6 +890,8 @@ def refine_layout(obj: ArticulatedObject, config: Optional[LayoutConfig] = None,
         if cfg.attach:
             _attach(obj, i, face)
             report["attached"] += 1
+    if cfg.attach:
+        report["handles_shared"] = share_handles(obj)
     from .siblings import siblings          # (it imports this module's helpers)
     siblings(obj, cfg, report, stated or {})
     if cfg.joints:
