@@ -137,6 +137,23 @@ def test_hinge_side_from_geometry_matches_the_generator(spatial_objects):
     assert {"left", "right", "bottom", "back"} <= seen
 
 
+def test_a_thick_lid_hinged_on_its_underside_opens_up():
+    """A flip lid 2.6 cm thick on a 3.7 cm neck, hinged on its underside's back edge (as the
+    refinement hinges a bottle's lids): its front edge rises as it opens, though its top
+    front corner swings mostly backwards ("a shampoo bottle with a flip-up cap", seed 2,
+    read "sideways")."""
+    from model.core import ArticulatedObject, Joint, JointType, Part
+    from model.data.spatial import opening_direction
+    obj = ArticulatedObject(category="Bottle", name="bottle", parts=[
+        Part(name="body_0", label="body", parent=-1, bbox_center=np.array([0, 0, 0.115]),
+             bbox_size=np.array([0.06, 0.06, 0.23])),
+        Part(name="lid_0", label="lid", parent=0, bbox_center=np.array([0, 0, 0.244]),
+             bbox_size=np.array([0.037, 0.038, 0.026]),
+             joint=Joint(JointType.REVOLUTE, np.array([-0.0185, 0, 0.231]),
+                         np.array([0.0, -1.0, 0.0]), r_range=(0.0, 2.79)))])
+    assert opening_direction(obj, 1) == "up"
+
+
 def test_arrangement_matches_the_generator_cells(spatial_objects):
     """Rows / columns of drawers and doors agree with the generator's bands and columns."""
     from model.data.describe import spatial_summary

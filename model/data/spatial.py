@@ -51,7 +51,10 @@ def hinge_side(obj: ArticulatedObject, i: int) -> Optional[str]:
 
 
 def opening_direction(obj: ArticulatedObject, i: int) -> Optional[str]:
-    """Where a hinged part's free edge goes when it opens: "down", "up" or "sideways"."""
+    """Where a hinged part's free edge goes when it opens: "down", "up" or "sideways". The
+    free edge is the one opposite the hinge in the panel's plane, at the hinge's depth (a
+    thick flip lid hinged on its underside's back edge lifts its front edge; its top front
+    corner swings mostly backwards)."""
     p = obj.parts[i]
     if hinge_side(obj, i) is None:
         return None
@@ -65,7 +68,10 @@ def opening_direction(obj: ArticulatedObject, i: int) -> Optional[str]:
     c = np.asarray(p.bbox_center, float)
     d = c - j.origin
     d = d - (d @ a) * a
-    free = c + d                                   # the edge opposite the hinge
+    thin = int(np.argmin(np.abs(p.bbox_size)))
+    if abs(a[thin]) < 0.5:                         # the panel's plane holds the axis
+        d[thin] = 0.0
+    free = j.origin + 2 * d                        # the edge opposite the hinge
     T = j.transform(0.0, ang)
     moved = T[:3, :3] @ free + T[:3, 3]
     delta = moved - free
