@@ -752,11 +752,11 @@ def close_slide_caps(obj: ArticulatedObject, mans: dict) -> list[str]:
     """A USB stick's slide-off cap is a sleeve in every object of the data: four walls along
     the slide and an end wall away from the stick, 0.8-2 mm thick, open towards the stick.
     Walls that thin are under a cell of the part's grid, so a decoded cap came out as its top
-    and bottom plates alone ("a usb stick with a cap", seeds 0-7: 3 of 8). Each wall of a
-    slide cap whose outer ``SLEEVE_PROBE`` covers under ``SLEEVE_COVER`` of its box face is
-    added over the whole face, as thick as the cap's walls that are there (within
-    ``SWIVEL_WALL``), less the stick's mesh. A cap with no wall of the sleeve is left alone.
-    Returns the caps closed."""
+    and bottom plates alone ("a usb stick with a cap", seeds 0-7: 3 of 8; a fourth lacked
+    its sides). Each wall of a slide cap whose outer ``SLEEVE_PROBE`` covers under
+    ``SLEEVE_COVER`` of its box face is added over the whole face, as thick as the cap's
+    walls that are there (within ``SWIVEL_WALL``), less the stick's mesh. A cap with no wall
+    of the sleeve is left alone. Returns the caps closed."""
     from .layout import _principal
     closed = []
     if obj.category != "USB":
@@ -981,7 +981,7 @@ def _merged_closed(mesh) -> bool:
     return bool(m.is_watertight)
 
 
-__all__ = ["revolved_sweep", "vessel_collision", "add_runners", "round_collision", "close_fronts", "close_slide_caps",
-           "face_cover", "seat_console_controls", "seat_lids",
+__all__ = ["revolved_sweep", "vessel_collision", "add_runners", "round_collision", "close_fronts",
+           "close_slide_caps", "face_cover", "seat_console_controls", "seat_lids",
            "drop_floaters", "simplify_to_budget", "first_step", "carve_parents",
            "carve_collision", "shrink_limits", "swept_hull", "manifolds_of", "store"]
