@@ -1502,6 +1502,18 @@ def test_a_usb_swivel_cap_wraps_its_stick():
             assert refine_layout(obj)["swivel_caps"] == 0
 
 
+def test_a_usb_swivel_pivot_sits_half_the_stick_width_from_its_end():
+    """"a usb flash drive with a cap that swivels around", seeds 1, 2, 4: the pivot decoded
+    6 mm from the stick's back end (the data's: half the stick's width), and driving the cap
+    swung the free stick's origin 3.3-3.7 cm in the physics check (limit 3 cm). The pivot
+    goes half the width in from the end it was decoded nearer."""
+    for decoded, want in ((-0.024, -0.018), (-0.002, -0.018), (0.021, 0.018)):
+        usb = _usb((0.05, 0.018, 0.01), (0.0, 0.0, 0.005), (0, 0, 1))
+        usb.parts[1].joint.origin = np.array([decoded, 0.0, 0.007])
+        refine_layout(usb)
+        assert usb.parts[1].joint.origin[0] == pytest.approx(want)
+
+
 def test_a_usb_cap_sliding_across_its_stick_slides_along_it():
     """A sliding cap decoded to lift off the stick's face (axis +z) slides along the stick
     towards its own side; one sliding along the stick already, and other categories'

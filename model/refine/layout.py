@@ -420,9 +420,11 @@ def _fit_swivel_cap(obj: ArticulatedObject, i: int) -> bool:
     """A USB stick's swivel cap (a cap turning about an axis across the stick) wraps its
     stick: it turns about that box axis exactly, and is no wider across the stick than the
     stick's box and ``SWIVEL_WRAP`` on each side, centred on it, with its pivot on the
-    stick's centre line; along the axis, a cap thicker than that is cut to it, centred. The
-    data's caps are two plates 1 mm past the stick; a decoded cap 2.4 times as wide as its
-    stick swung its free stick around in the physics check. -> whether anything changed."""
+    stick's centre line, half the stick's width in from its end; along the axis, a cap
+    thicker than that is cut to it, centred. The data's caps are two plates 1 mm past the
+    stick; a decoded cap 2.4 times as wide as its stick swung its free stick around in the
+    physics check, and a pivot decoded 6 mm from the stick's end (the data's: half its
+    width, 7-12 mm) swung the free stick's origin 3.7 cm. -> whether anything changed."""
     p = obj.parts[i]
     if obj.category != "USB" or p.label != "cap" or p.parent < 0 \
             or p.joint.type not in (JointType.REVOLUTE, JointType.CONTINUOUS):
@@ -441,6 +443,12 @@ def _fit_swivel_cap(obj: ArticulatedObject, i: int) -> bool:
             centre[d] = body.bbox_center[d]
     origin = np.asarray(p.joint.origin, dtype=np.float64).copy()
     origin[width] = body.bbox_center[width]
+    # along the stick: half the stick's width in from the end the pivot was decoded at, as
+    # the data's pivots are (the plate's round end flush with the casing's back)
+    blo, bhi = _lohi(body)
+    back = -1.0 if origin[long] <= body.bbox_center[long] else 1.0
+    end = blo[long] if back < 0 else bhi[long]
+    origin[long] = end - back * float(np.min(body.bbox_size[width])) / 2
     axis = np.eye(3)[k] * sign
     if np.allclose(size, p.bbox_size) and np.allclose(centre, p.bbox_center) \
             and np.allclose(origin, p.joint.origin) and np.allclose(axis, p.joint.axis):
