@@ -5,8 +5,8 @@
 
 A slide cap is a sleeve in the data (model/data/synth/handheld.py): four walls along the
 slide and an end wall away from the stick. A wall counts as there when the cap's outer 3 mm
-covers at least 90 % of its box face (model.refine.meshes.face_cover), as the refinement's
-``close_slide_caps`` decides.
+covers at least 90 % of its box face (model.refine.meshes.sleeve_covers), as the
+refinement's ``close_slide_caps`` decides.
 """
 from __future__ import annotations
 
@@ -23,13 +23,11 @@ def main() -> None:
     ap.add_argument("--no-refine", action="store_true")
     args = ap.parse_args()
 
-    import numpy as np
-
     from model.core import meshops
     from model.pipeline.api import GenerationConfig
     from model.pipeline.generator import Generator
     from model.refine.layout import _principal
-    from model.refine.meshes import SLEEVE_COVER, SLEEVE_PROBE, face_cover
+    from model.refine.meshes import SLEEVE_COVER, sleeve_covers
 
     gen = Generator.load(GenerationConfig(refine=not args.no_refine))
     caps = pieces = open_walls = 0
@@ -41,12 +39,9 @@ def main() -> None:
                 if p.label != "cap" or p.joint.type.rotates or p.mesh is None:
                     continue
                 m = meshops.to_manifold(p.mesh)
-                k = _principal(p.joint.axis)[0]
-                body = obj.parts[p.parent]
-                lo, hi = np.asarray(m.bounding_box()).reshape(2, 3)
-                far = 1 if (lo[k] + hi[k]) / 2 >= body.bbox_center[k] else -1
-                faces = [(d, s) for d in range(3) if d != k for s in (1, -1)] + [(k, far)]
-                bare = [f for f in faces if face_cover(m, *f, SLEEVE_PROBE) < SLEEVE_COVER]
+                body = meshops.to_manifold(obj.parts[p.parent].mesh)
+                covers = sleeve_covers(m, body, _principal(p.joint.axis)[0])
+                bare = [f for f, c in covers.items() if c < SLEEVE_COVER]
                 n = len(m.decompose())
                 caps += 1
                 pieces += n > 1

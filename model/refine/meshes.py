@@ -455,6 +455,19 @@ RIM_DEPTH = 0.005  # m: the body's mesh this far below the lid is the rim its li
 LIP = 0.002        # m: how far a fitted lid reaches past the rim all round
 
 
+def _flip_lids(obj: ArticulatedObject, mans: dict):
+    """(part, thinnest axis, -1 if its parent is below it else +1) of each hinged lid of a
+    bottle meshed on its meshed parent."""
+    if obj.category != "Bottle":
+        return
+    for k in _meshed_on_parent(obj, mans, ("lid",)):
+        p = obj.parts[k]
+        if p.joint.type.rotates:
+            n = int(np.argmin(p.bbox_size))
+            yield k, n, float(np.sign(obj.parts[p.parent].bbox_center[n] - p.bbox_center[n])
+                              or -1.0)
+
+
 def fit_lids_to_necks(obj: ArticulatedObject, mans: dict) -> list[str]:
     """A bottle's flip lid wider than the neck its body's mesh ends in gets the neck's size:
     the layout sizes the lid to the body's *box*, and where the shape prior draws a narrower
@@ -464,20 +477,16 @@ def fit_lids_to_necks(obj: ArticulatedObject, mans: dict) -> list[str]:
     with its edge; the data's flip lids cover the mouth and hinge on the neck. Lids with
     parts on them are left. Returns the lids fitted."""
     fitted = []
-    if obj.category != "Bottle":
-        return fitted
-    for k in _meshed_on_parent(obj, mans, ("lid",)):
+    for k, n, below in _flip_lids(obj, mans):
         p = obj.parts[k]
         par = p.parent
-        if not p.joint.type.rotates or obj.children(k):
+        if obj.children(k):
             continue
-        n = int(np.argmin(p.bbox_size))
         line = meshops.axis_line(p.joint.origin, p.joint.axis, 1.0)
         if float(line.min_gap(mans[par], 0.05)) - float(p.bbox_size[n]) <= NECK_GAP:
             continue            # a hinge bridges the lid's thickness to its parent
         lo, hi = np.asarray(mans[k].bounding_box(), dtype=np.float64).reshape(2, 3)
         verts = np.asarray(mans[par].to_mesh().vert_properties)[:, :3]
-        below = float(np.sign(obj.parts[par].bbox_center[n] - p.bbox_center[n]) or -1.0)
         face = lo[n] if below < 0 else hi[n]
         rim = verts[np.abs(verts[:, n] - face) <= RIM_DEPTH]
         if not len(rim):
@@ -517,17 +526,11 @@ def seat_lids(obj: ArticulatedObject, mans: dict) -> list[str]:
     0: 1.9 cm tall). In the data the body ends under the lid. A cut that would take more than
     ``MAX_TRIM`` of the body is not made. Returns the lids seated."""
     seated = []
-    if obj.category != "Bottle":
-        return seated
-    for k in _meshed_on_parent(obj, mans, ("lid",)):
+    for k, n, below in _flip_lids(obj, mans):
         p = obj.parts[k]
         par = p.parent
-        if not p.joint.type.rotates:
-            continue
-        n = int(np.argmin(p.bbox_size))
         lo, hi = np.asarray(mans[k].bounding_box(), dtype=np.float64).reshape(2, 3)
         blo, bhi = np.asarray(mans[par].bounding_box(), dtype=np.float64).reshape(2, 3)
-        below = float(np.sign(obj.parts[par].bbox_center[n] - p.bbox_center[n]) or -1.0)
         clo, chi = lo - LIP, hi + LIP
         if below < 0:        # the body under the lid: everything above the seat goes
             clo[n], chi[n] = lo[n] - LID_SEAT, max(hi[n], bhi[n]) + LIP
@@ -737,15 +740,27 @@ SLEEVE_COVER = 0.9    # a slide cap's wall covers its box face 0.92-1.0 when dec
 SLEEVE_PROBE = 0.003  # m: the outer depth of a face in which its wall is looked for
 
 
-def _wall_thickness(man, k: int, sgn: int) -> float:
+def _wall_thickness(man, k: int, sgn: int, cover: float) -> float:
     """Mean thickness of Manifold ``man``'s wall on its box face (axis ``k``, side ``sgn``):
-    the volume of its outer ``SLEEVE_PROBE`` over the area that covers, seen along the axis."""
+    the volume of its outer ``SLEEVE_PROBE`` over the area that covers (``cover`` of the
+    face: :func:`face_cover`), seen along the axis."""
     lo, hi = np.asarray(man.bounding_box()).reshape(2, 3)
     plane = hi[k] if sgn > 0 else lo[k]
     slab = man ^ _slab(lo, hi, k, plane, plane - sgn * SLEEVE_PROBE)
     a, b = [i for i in range(3) if i != k]
-    area = face_cover(man, k, sgn, SLEEVE_PROBE) * (hi[a] - lo[a]) * (hi[b] - lo[b])
+    area = cover * (hi[a] - lo[a]) * (hi[b] - lo[b])
     return float(slab.volume()) / area if area > 0 else 0.0
+
+
+def sleeve_covers(cap, body, k: int) -> dict[tuple[int, int], float]:
+    """(axis, side) -> :func:`face_cover` of the outer ``SLEEVE_PROBE`` of each face a slide
+    cap's sleeve has (Manifolds ``cap`` on ``body``, sliding along axis ``k``): the four
+    along the slide and the end away from the stick."""
+    lo, hi = np.asarray(cap.bounding_box()).reshape(2, 3)
+    blo, bhi = np.asarray(body.bounding_box()).reshape(2, 3)
+    far = 1 if lo[k] + hi[k] >= blo[k] + bhi[k] else -1
+    faces = [(d, s) for d in range(3) if d != k for s in (1, -1)] + [(k, far)]
+    return {f: face_cover(cap, *f, SLEEVE_PROBE) for f in faces}
 
 
 def close_slide_caps(obj: ArticulatedObject, mans: dict) -> list[str]:
@@ -765,16 +780,13 @@ def close_slide_caps(obj: ArticulatedObject, mans: dict) -> list[str]:
         if p.label != "cap" or p.parent < 0 or i not in mans or p.parent not in mans \
                 or p.joint.type != JointType.PRISMATIC:
             continue
-        k = _principal(p.joint.axis)[0]
         cap, body = mans[i], mans[p.parent]
-        lo, hi = np.asarray(cap.bounding_box()).reshape(2, 3)
-        blo, bhi = np.asarray(body.bounding_box()).reshape(2, 3)
-        far = 1 if lo[k] + hi[k] >= blo[k] + bhi[k] else -1
-        faces = [(d, s) for d in range(3) if d != k for s in (1, -1)] + [(k, far)]
-        missing = [f for f in faces if face_cover(cap, *f, SLEEVE_PROBE) < SLEEVE_COVER]
-        if not missing or len(missing) == len(faces):
+        covers = sleeve_covers(cap, body, _principal(p.joint.axis)[0])
+        missing = [f for f, c in covers.items() if c < SLEEVE_COVER]
+        if not missing or len(missing) == len(covers):
             continue
-        t = float(np.clip(np.median([_wall_thickness(cap, *f) for f in faces
+        lo, hi = np.asarray(cap.bounding_box()).reshape(2, 3)
+        t = float(np.clip(np.median([_wall_thickness(cap, *f, c) for f, c in covers.items()
                                      if f not in missing]), *SWIVEL_WALL))
         walls = [_slab(lo, hi, d, (hi if s > 0 else lo)[d], (hi if s > 0 else lo)[d] - s * t)
                  for d, s in missing]
@@ -983,5 +995,6 @@ def _merged_closed(mesh) -> bool:
 
 __all__ = ["revolved_sweep", "vessel_collision", "add_runners", "round_collision", "close_fronts",
            "close_slide_caps", "face_cover", "seat_console_controls", "seat_lids",
+           "sleeve_covers",
            "drop_floaters", "simplify_to_budget", "first_step", "carve_parents",
            "carve_collision", "shrink_limits", "swept_hull", "manifolds_of", "store"]
