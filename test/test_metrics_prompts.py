@@ -183,6 +183,12 @@ def test_parse_free_form(prompt, category, counts, lower, joints):
     # a flip cap is a hinged lid (it had been read as a cap, "a flip-top cap" as a cap and a lid)
     ("a squeeze bottle with a flip cap", "Bottle lid=1"),
     ("a bottle with a flip-top cap", "Bottle lid=1"),
+    # a lid said to twist or screw off is the data's screw cap (it had been made a flip lid)
+    ("a glass bottle with a twist-off lid", "Bottle cap=1 cap:screw"),
+    ("a jar with a lid that unscrews", "Bottle cap=1 cap:screw"),
+    # a dryer is a laundry machine (the network alone made it an oven), a pendrive a USB stick
+    ("a compact dryer with a door and one knob", "WashingMachine door=1 knob=1"),
+    ("a pendrive with a cap", "USB cap=1"),
     ("a desk pedestal with two stacked drawers on top and three drawers below",   # no row
      "StorageFurniture drawer=5 drawer.layout=column drawer.vpos=bottom/top"),
     # a full-front door stated on one side is hinged there (a safe's door had been made a

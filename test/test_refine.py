@@ -1598,6 +1598,35 @@ def test_a_bottle_lid_wider_than_its_neck_is_fitted_to_the_neck():
     assert fit_lids_to_necks(obj, mans) == []                  # fitted: left alone
 
 
+def test_a_screw_cap_wider_than_its_neck_is_fitted_round_the_neck():
+    """"a jar with a lid that unscrews" seed 1: read as a screw cap, the network sized it as
+    a flip lid (7.5 cm over a 4.7 cm neck, a plate standing out round it). It is scaled
+    across its axis, about the neck's centre, to the neck plus CAP_WRAP all round; the neck is
+    measured in a slab of the body under the cap (a simplified neck has no vertices there); a
+    cap on a body as wide as it stays."""
+    from model.core import meshops
+    from model.refine.meshes import CAP_WRAP, fit_caps_to_necks
+    joint = Joint(JointType.SCREW, (0.004, 0, 0.17), (0, 0, 1), t_range=(0, 0.008),
+                  r_range=(0, 12.0))
+    obj = ArticulatedObject(category="Bottle", name="jar", parts=[
+        _part("body_0", "body", -1, (0.1, 0.1, 0.175), (0, 0, 0.0875)),
+        _part("cap_0", "cap", 0, (0.075, 0.075, 0.008), (0.004, 0, 0.172), joint)])
+    body = meshops.union_manifolds([meshops.box((0.1, 0.1, 0.14), (0, 0, 0.07)),
+                                    meshops.box((0.047, 0.047, 0.035), (0.004, 0, 0.1575))])
+    mans = {0: body, 1: meshops.box((0.075, 0.075, 0.008), (0.004, 0, 0.172))}
+    assert fit_caps_to_necks(obj, mans) == ["cap_0"]
+    cap = obj.parts[1]
+    assert cap.bbox_size[:2] == pytest.approx((0.047 + 2 * CAP_WRAP,) * 2)
+    assert cap.bbox_size[2] == pytest.approx(0.008)
+    assert cap.bbox_center == pytest.approx((0.004, 0, 0.172))
+    assert cap.joint.origin == pytest.approx((0.004, 0, 0.17))
+    assert fit_caps_to_necks(obj, mans) == []                   # fitted: left alone
+    wide = {0: meshops.box((0.1, 0.1, 0.17), (0, 0, 0.085)),
+            1: meshops.box((0.075, 0.075, 0.008), (0, 0, 0.172))}
+    obj.parts[1].bbox_size = np.array((0.075, 0.075, 0.008))
+    assert fit_caps_to_necks(obj, wide) == []                   # no neck: stays
+
+
 def test_a_sliver_touching_a_part_at_one_vertex_is_not_written():
     """A 4-face tetrahedron sharing one vertex with a box is its own shell to a reader (the
     audit counts it as a floater); the stored mesh drops it and stays closed."""

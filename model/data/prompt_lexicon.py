@@ -30,14 +30,15 @@ EXTRA_CATEGORY = {
                          "end table", "toolbox", "tool box", "printer stand", "kitchen island",
                          "pantry", "pantry cabinet", "bookcase", "bookshelf", "china cabinet",
                          "curio cabinet", "desk pedestal", "wall cabinet", "base cabinet"),
-    "Safe": ("safety box", "cash box", "deposit box", "safe deposit box", "gun safe", "wall safe"),
+    "Safe": ("safety box", "cash box", "lock box", "deposit box", "safe deposit box", "gun safe", "wall safe"),
     "Oven": ("toaster oven", "microwave oven", "baking oven", "electric oven", "gas oven",
              "microwave", "microwaves", "dishwasher", "dish washer", "dishwashers"),
     "WashingMachine": ("washer-dryer", "laundry washer", "washing-machine", "washers",
-                       "front loader", "top loading washer"),
+                       "front loader", "top loading washer", "dryer", "dryers", "tumble dryer",
+                       "clothes dryer", "laundry dryer", "tumble drier"),
     "Bottle": ("thermos", "vial", "water flask", "jug", "canteen", "bottles", "flasks"),
     "USB": ("usb key", "usb memory stick", "memory key", "usb-stick", "usb stick drive",
-            "flashdrive", "usb flash stick"),
+            "flashdrive", "usb flash stick", "pendrive", "pen-drive"),
 }
 EXTRA_PART = {
     "handle": ("handlebar", "bar handle", "bar pull", "door handle", "drawer pull", "pull bar"),

@@ -470,6 +470,9 @@ def _tidy(out: ExpectedStructure, text: str) -> None:
     if out.category == "Bottle" and out.joint_types.get("cap") == ["revolute"] \
             and "lid" not in out.counts:          # a bottle's hinged "cap" is a flip lid
         _relabel(out, "cap", "lid")
+    if out.category == "Bottle" and out.joint_types.get("lid") == ["screw"] \
+            and "cap" not in out.counts:          # a lid that twists off is a screw cap
+        _relabel(out, "lid", "cap")
     for facts in out.spatial.values():
         h = facts.get("hinge")
         if h and "side" in h and len(h) > 1:

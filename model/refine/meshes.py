@@ -499,17 +499,66 @@ def fit_lids_to_necks(obj: ArticulatedObject, mans: dict) -> list[str]:
             centre[d] = float(rim[:, d].min() + rim[:, d].max()) / 2
         if scale.min() > 0.999:
             continue
-        T = np.eye(4)
-        T[:3, :3] = np.diag(scale)
-        T[:3, 3] = centre * (1.0 - scale)
-        mans[k] = mans[k].transform(meshops.affine34(T))
-        if p.mesh is not None:
-            p.mesh.apply_transform(T)
-        if p.collision:
-            p.collision = [_scaled_piece(c, T) for c in p.collision]
-        p.bbox_center = T[:3, :3] @ p.bbox_center + T[:3, 3]
-        p.bbox_size = p.bbox_size * scale
-        p.joint.origin = T[:3, :3] @ np.asarray(p.joint.origin, dtype=np.float64) + T[:3, 3]
+        _scale_part(obj, mans, k, scale, centre)
+        fitted.append(p.name)
+    return fitted
+
+
+def _scale_part(obj: ArticulatedObject, mans: dict, k: int, scale: np.ndarray,
+                centre: np.ndarray) -> None:
+    """Part ``k`` (manifold, mesh, collision pieces, box, joint origin) scaled by ``scale``
+    per axis about ``centre``."""
+    p = obj.parts[k]
+    T = np.eye(4)
+    T[:3, :3] = np.diag(scale)
+    T[:3, 3] = centre * (1.0 - scale)
+    mans[k] = mans[k].transform(meshops.affine34(T))
+    if p.mesh is not None:
+        p.mesh.apply_transform(T)
+    if p.collision:
+        p.collision = [_scaled_piece(c, T) for c in p.collision]
+    p.bbox_center = T[:3, :3] @ p.bbox_center + T[:3, 3]
+    p.bbox_size = p.bbox_size * scale
+    p.joint.origin = T[:3, :3] @ np.asarray(p.joint.origin, dtype=np.float64) + T[:3, 3]
+
+
+CAP_WRAP = 0.0045   # m: the most the data's screw caps reach past their neck all round (the
+                    # skirt's 0.8 mm clearance, a 1.5-3 mm wall and knurled ribs; handheld.py)
+
+
+def fit_caps_to_necks(obj: ArticulatedObject, mans: dict) -> list[str]:
+    """A bottle's screw cap wider than the neck under it plus ``CAP_WRAP`` all round is
+    scaled across its axis, about the neck's centre, to that size: the network sizes a cap it
+    reads as a "lid" ("a glass bottle with a twist-off lid") like a flip lid, a disc up to
+    1.6 times the neck's width standing out round it, where the data's caps wrap the neck.
+    The neck is the body's mesh in the slab ``RIM_DEPTH`` deep under the cap's lower face;
+    a cap on a body as wide as it (no neck) stays. Caps with parts on them are left. Returns the caps
+    fitted."""
+    if obj.category != "Bottle":
+        return []
+    fitted = []
+    for k in _meshed_on_parent(obj, mans, ("cap",)):
+        p = obj.parts[k]
+        if p.joint.type != JointType.SCREW or obj.children(k):
+            continue
+        n = int(np.argmax(np.abs(p.joint.axis)))
+        lo, hi = np.asarray(mans[k].bounding_box(), dtype=np.float64).reshape(2, 3)
+        blo, bhi = np.asarray(mans[p.parent].bounding_box(), dtype=np.float64).reshape(2, 3)
+        up = p.bbox_center[n] >= obj.parts[p.parent].bbox_center[n]
+        slo, shi = blo - 1.0, bhi + 1.0          # the slab under the cap, across the body
+        slo[n], shi[n] = (lo[n] - RIM_DEPTH, lo[n]) if up else (hi[n], hi[n] + RIM_DEPTH)
+        neck = mans[p.parent] ^ meshops.box(shi - slo, (slo + shi) / 2)
+        if neck.volume() < 1e-12:
+            continue
+        nlo, nhi = np.asarray(neck.bounding_box(), dtype=np.float64).reshape(2, 3)
+        scale, centre = np.ones(3), np.zeros(3)
+        for d in (d for d in range(3) if d != n):
+            want = float(nhi[d] - nlo[d]) + 2 * CAP_WRAP
+            scale[d] = min(1.0, want / max(hi[d] - lo[d], 1e-9))
+            centre[d] = float(nlo[d] + nhi[d]) / 2
+        if scale.min() > 0.999:
+            continue
+        _scale_part(obj, mans, k, scale, centre)
         fitted.append(p.name)
     return fitted
 
@@ -994,7 +1043,8 @@ def _merged_closed(mesh) -> bool:
 
 
 __all__ = ["revolved_sweep", "vessel_collision", "add_runners", "round_collision", "close_fronts",
-           "close_slide_caps", "face_cover", "seat_console_controls", "seat_lids",
+           "close_slide_caps", "face_cover", "fit_caps_to_necks", "seat_console_controls",
+           "seat_lids",
            "sleeve_covers",
            "drop_floaters", "simplify_to_budget", "first_step", "carve_parents",
            "carve_collision", "shrink_limits", "swept_hull", "manifolds_of", "store"]
