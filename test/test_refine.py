@@ -1627,6 +1627,35 @@ def test_a_screw_cap_wider_than_its_neck_is_fitted_round_the_neck():
     assert fit_caps_to_necks(obj, wide) == []                   # no neck: stays
 
 
+def test_a_neck_through_a_ring_cap_ends_under_the_cap_s_new_top():
+    """"a thermos with a screw-on cap" seed 2: the cap came out a ring round the neck, lower
+    than the body's top, and the neck stood 8 mm above it (carving the cap's lift then left
+    that as a loose disc). The body ends LID_SEAT under the cap's top wall over the cap's
+    outline plus LIP, and the ring gets that wall; a cap sitting on its neck stays."""
+    from model.core import meshops
+    from model.refine.meshes import CAP_TOP, LID_SEAT, cap_necks
+    joint = Joint(JointType.SCREW, (0, 0, 0.195), (0, 0, 1), t_range=(0, 0.008),
+                  r_range=(0, 12.0))
+    parts = [_part("body_0", "body", -1, (0.08, 0.08, 0.213), (0, 0, 0.1065)),
+             _part("cap_0", "cap", 0, (0.048, 0.048, 0.011), (0, 0, 0.1995), joint)]
+    obj = ArticulatedObject(category="Bottle", name="thermos", parts=parts)
+    body = meshops.union_manifolds([meshops.box((0.08, 0.08, 0.19), (0, 0, 0.095)),
+                                    meshops.box((0.04, 0.04, 0.024), (0, 0, 0.201))])
+    ring = meshops.box((0.048, 0.048, 0.011), (0, 0, 0.1995)) - \
+        meshops.box((0.041, 0.041, 0.02), (0, 0, 0.1995))
+    mans = {0: body, 1: ring}
+    assert cap_necks(obj, mans) == ["cap_0"]
+    top = 0.205 - float(np.clip(0.25 * 0.011, *CAP_TOP))
+    assert np.asarray(mans[0].bounding_box())[5] == pytest.approx(top - LID_SEAT)
+    assert len(mans[0].decompose()) == 1 and len(mans[1].decompose()) == 1
+    column = meshops.box((0.01, 0.01, 0.011), (0, 0, 0.1995))
+    assert float((mans[1] ^ column).volume()) == pytest.approx(1e-4 * (0.205 - top))
+    assert cap_necks(obj, mans) == []                           # seated: left alone
+    on_neck = {0: meshops.box((0.04, 0.04, 0.2), (0, 0, 0.1)),
+               1: meshops.box((0.048, 0.048, 0.011), (0, 0, 0.2027))}
+    assert cap_necks(obj, on_neck) == []
+
+
 def test_a_sliver_touching_a_part_at_one_vertex_is_not_written():
     """A 4-face tetrahedron sharing one vertex with a box is its own shell to a reader (the
     audit counts it as a floater); the stored mesh drops it and stays closed."""

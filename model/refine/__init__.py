@@ -64,6 +64,7 @@ def refine_meshes(obj: ArticulatedObject, config: Optional[RefineConfig] = None,
         report["lids_fitted"] = M.fit_lids_to_necks(obj, mans)
         report["lids_seated"] = M.seat_lids(obj, mans)
         report["caps_fitted"] = M.fit_caps_to_necks(obj, mans)
+        report["necks_capped"] = M.cap_necks(obj, mans)
     if cfg.panels and not frozen:
         report["control_panels"] = M.add_control_panels(obj, mans)
         report["fronts_closed"] = M.close_fronts(obj, mans)
