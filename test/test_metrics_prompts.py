@@ -186,6 +186,28 @@ def test_parse_free_form(prompt, category, counts, lower, joints):
     # a lid said to twist or screw off is the data's screw cap (it had been made a flip lid)
     ("a glass bottle with a twist-off lid", "Bottle cap=1 cap:screw"),
     ("a jar with a lid that unscrews", "Bottle cap=1 cap:screw"),
+    # a count said straight before a place names the part said last (six drawers had been
+    # read as three); a share of the count before it ("two on each side") or a restatement
+    # ("two drawers, two at the bottom") adds none
+    ("a wide dresser with three drawers on the left and three on the right",   # two columns
+     "StorageFurniture drawer=6 drawer.layout=grid drawer.rows=3 drawer.columns=2"),
+    ("a cabinet with 4 drawers on the left and 2 on the right",
+     "StorageFurniture drawer=6 drawer.hpos=left/right"),
+    ("a sideboard with two doors on the left and two on the right",
+     "StorageFurniture door=4 door.layout=grid door.rows=2 door.columns=2"),
+    ("a dresser with two drawers on top and three below",        # a row of two on top
+     "StorageFurniture drawer=5 drawer.per_row=2/1/1/1"),
+    ("a chest with four drawers, two on each side", "StorageFurniture drawer=4 "
+     "drawer.hpos=left/right"),
+    ("a cabinet with two doors and two drawers, two at the bottom", "StorageFurniture door=2 "
+     "drawer=2 drawer.vpos=bottom"),
+    ("a safe whose door opens to the left, with one combination dial and a six-button keypad "
+     "laid out in two rows of three below the dial", "Safe dial=1 button=6 door=1 door:revolute "
+     "button.layout=grid button.rows=2 button.columns=3 button.below=dial door.hinge=left "
+     "door.opens=sideways"),
+    # "above each of its three doors": one above each, in a row (read as a column at the top)
+    ("a sideboard with a drawer above each of its three doors", "StorageFurniture drawer=3 "
+     "door=3 drawer.above=door drawer.layout=row door.layout=row"),
     # a dryer is a laundry machine (the network alone made it an oven), a pendrive a USB stick
     ("a compact dryer with a door and one knob", "WashingMachine door=1 knob=1"),
     ("a pendrive with a cap", "USB cap=1"),

@@ -52,7 +52,8 @@ from .prompt_lexicon import (DEFINITE, DISTRIBUTIVE, EXACT_NUMBER_PHRASES,  # no
                              STOP_WORDS, ZERO_WORDS, _motion_in_phrase, _sentences, _Tok,
                              _tokenize)
 from .prompt_size import read_size
-from .prompt_spatial import ARRANGED, HINGED, _attach, _rewrite_counts, _spatial_facts  # noqa: F401
+from .prompt_spatial import (ARRANGED, HINGED, _N, _attach, _num, _rewrite_counts,  # noqa: F401
+                             _spatial_facts)
 
 
 # --------------------------------------------------------------------------------------------
@@ -179,7 +180,7 @@ def parse_prompt(text: str) -> ExpectedStructure:
     last_part: str | None = None
     earlier_parts: list[str] = []
     for si, sentence in enumerate(_sentences(text)):
-        sentence = _ones_to_parts(sentence, last_part)
+        sentence = _elided_parts(_ones_to_parts(sentence, last_part), last_part)
         sentence, grid_facts = _rewrite_counts(sentence)
         toks = _tokenize(sentence)
         for lab in _attach(grid_facts + _spatial_facts(sentence, toks), toks, earlier_parts,
@@ -211,6 +212,35 @@ def _ones_to_parts(sentence: str, last_part: str | None) -> str:
         label = parts[-1] if parts else last_part
         if label:
             out += [sentence[at:m.start()], label + "s"]
+            at = m.end()
+    return "".join(out) + sentence[at:]
+
+
+_ELIDED = re.compile(
+    r"\b(\d+|" + "|".join(sorted(vocab.NUMBER_WORDS[2:13], key=len, reverse=True)) +
+    r")(?= (?:on|at|along|below|above|under|underneath|beneath|beside)\b)"
+    r"(?! (?:on|at) (?:each|either|both|every)\b)")
+
+
+def _elided_parts(sentence: str, last_part: str | None) -> str:
+    """"three drawers on the left and three on the right" -> "... three drawers on the
+    right": a count of two or more said straight before a place names the part mentioned
+    last before it (the six drawers had been read as three). "one on top" stays: one of
+    those already counted ("two doors, one above the other"), as does "two on each side" (a
+    share of the count before it: "four drawers, two on each side"), and a count restating
+    the one just said ("two drawers, two at the bottom")."""
+    out, at = [], 0
+    for m in _ELIDED.finditer(sentence):
+        before = _tokenize(sentence[:m.start()])
+        at_part = [j for j, t in enumerate(before) if t.kind == "PART"]
+        label = before[at_part[-1]].value if at_part else last_part
+        said = [t.value for t in before[max(0, at_part[-1] - 3):at_part[-1]]
+                if t.kind == "NUM"] if at_part else []
+        restated = bool(before) and before[-1].kind == "PUNCT" and said[-1:] == \
+            [vocab.NUMBER_VALUES.get(m.group(1), None) or int(m.group(1))]
+        after_of = bool(before) and before[-1].text.lower() in ("of", "x", "by", "times")
+        if label and before and before[-1].kind != "PART" and not restated and not after_of:
+            out += [sentence[at:m.end()], " " + vocab.plural(label)]
             at = m.end()
     return "".join(out) + sentence[at:]
 
@@ -473,6 +503,7 @@ def _tidy(out: ExpectedStructure, text: str) -> None:
     if out.category == "Bottle" and out.joint_types.get("lid") == ["screw"] \
             and "cap" not in out.counts:          # a lid that twists off is a screw cap
         _relabel(out, "lid", "cap")
+    _side_columns(out, low)
     for facts in out.spatial.values():
         h = facts.get("hinge")
         if h and "side" in h and len(h) > 1:
@@ -484,12 +515,14 @@ def _tidy(out: ExpectedStructure, text: str) -> None:
         if out.counts.get(lab) == 1 and facts.get("layout") == "row" and "rows" not in facts:
             del facts["layout"]        # "one drawer across the top": no row of one
         # "two doors side by side and a drawer above each door": as many above a row, a row;
-        # "two doors and a drawer below each door": one under each, so both side by side
+        # "two doors and a drawer below each door" (or "below each of its two doors"): one
+        # under each, so both side by side
         other = (facts.get("above") or facts.get("below") or [None])[0]
         theirs = out.spatial.get(other) or {}
         row = theirs.get("layout") == "row"
         each = other is not None and re.search(
-            rf"\b(?:above|below|under|beneath|underneath|over) (?:each|every) {other}\b", low)
+            rf"\b(?:above|below|under|beneath|underneath|over) (?:each|every) "
+            rf"(?:of (?:the|its|their) (?:[a-z0-9]+ )?)?{other}", low)
         if each and out.counts.get(other, 0) >= 2 and \
                 not (facts.keys() | theirs.keys()) & ARRANGEMENT_KEYS:
             row = True
@@ -501,6 +534,27 @@ def _tidy(out: ExpectedStructure, text: str) -> None:
         if lab not in out.counts and "rows" in facts and "columns" in facts:
             out.counts[lab] = int(facts["rows"]) * int(facts["columns"])
             out.min_counts.pop(lab, None)
+
+
+def _side_columns(out: ExpectedStructure, low: str) -> None:
+    """"three drawers on the left and three on the right": two columns of three (the six
+    had been made one column across the front; "two doors on the left and two on the
+    right" four full-width strips). Only equal counts of two or more, and only where
+    nothing else arranges those parts."""
+    for lab in ("drawer", "door"):
+        facts = out.spatial.get(lab) or {}
+        if sorted(facts.get("hpos") or []) != ["left", "right"] \
+                or facts.keys() & ARRANGEMENT_KEYS:
+            continue
+        noun = rf"(?:[a-z-]+ )?{vocab.plural(lab)}"
+        sides = r"on the (left|right)(?: side)?"
+        m = re.search(rf"\b{_N} {noun} {sides},? and {_N}(?: {noun})? {sides}", low)
+        if not m or {m.group(2), m.group(4)} != {"left", "right"}:
+            continue
+        n = _num(m.group(1))
+        if n >= 2 and _num(m.group(3)) == n and out.counts.get(lab) == 2 * n:
+            del facts["hpos"]
+            facts.update(layout="grid", rows=n, columns=2)
 
 
 def _relabel(out: ExpectedStructure, a: str, b: str) -> None:

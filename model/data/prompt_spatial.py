@@ -294,9 +294,9 @@ def _spatial_facts(sentence: str, toks: list[_Tok]) -> list[_Fact]:
                     if t.kind == "PART":
                         part = t
                         break
-                    if t.kind not in ("WORD", "NUM", "DET", "MULT") or \
-                            (t.text in STOP_WORDS and t.text != "of"):
-                        break
+                    if t.kind not in ("WORD", "NUM", "DET", "MULT", "DIST") or \
+                            (t.text in STOP_WORDS and t.text not in ("of", "its", "their")):
+                        break           # "above each of its three doors" reads on
                 if key == "sideof":
                     # "drawers to the right of the door": right of it, and the door on the
                     # left (a phrase about no part, "left of the panel", is a plain side)
