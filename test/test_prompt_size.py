@@ -298,3 +298,66 @@ def test_alignment_checks_the_stated_size_within_five_percent():
                           GeneratedStructure.from_object(obj))
     assert res.spatial == {"size": False} and res.failures == ["size.width: 0.800 m != 0.600 m"]
 
+
+
+def _drawer_row(n: int, height: float, door: bool = False) -> ArticulatedObject:
+    """A 1.5 m wide storage body whose front the fill tiled with ``n`` drawers side by side
+    (the last a door with ``door``), each with a 2 cm tall bar handle."""
+    W = 1.5
+    parts = [Part(name="body_0", label="body", parent=-1, bbox_center=(0, 0, height / 2),
+                  bbox_size=(0.5, W, height), joint=Joint())]
+    w = (W - 0.04) / n
+    for k in range(n):
+        y = -W / 2 + 0.02 + w * (k + 0.5)
+        lab = "door" if door and k == n - 1 else "drawer"
+        j = Joint(JointType.PRISMATIC, (0.25, y, height / 2), (1, 0, 0), t_range=(0, 0.4)) \
+            if lab == "drawer" else Joint(JointType.REVOLUTE, (0.25, y + w / 2, height / 2),
+                                          (0, 0, 1), r_range=(0, 1.5))
+        x, depth = (0.0, 0.48) if lab == "drawer" else (0.255, 0.01)
+        parts.append(Part(name=f"{lab}_{k}", label=lab, parent=0,
+                          bbox_center=(x, y, height / 2),
+                          bbox_size=(depth, w - 0.004, height - 0.04), joint=j))
+        parts.append(Part(name=f"handle_{k}", label="handle", parent=len(parts) - 1,
+                          bbox_center=(0.25, y, height / 2), bbox_size=(0.02, 0.12, 0.02),
+                          joint=Joint()))
+    return ArticulatedObject(category="StorageFurniture", name="row", parts=parts)
+
+
+def test_a_tall_row_of_drawers_lowers_its_body_to_the_data_s_drawer_shape():
+    """"a wide cabinet with four drawers side by side" seed 2: the fill grew four 0.36 m wide
+    drawers to the 1.36 m body's height. The layout is lowered along z until each drawer is
+    at most DRAWER_ASPECT times as tall as wide (and under DRAWER_BAND), the body no lower
+    than MIN_HEIGHT; handles keep their size and stay centred; slides keep their travel.
+    A front with a door, drawers in a column, or drawers already that shape stay."""
+    from model.data.prompt_size import height_said
+    from model.refine.size import DRAWER_ASPECT, MIN_HEIGHT, lower_drawer_row
+    obj = _drawer_row(4, 1.36)
+    f = lower_drawer_row(obj)
+    assert f is not None and f < 0.35
+    drawers = [p for p in obj.parts if p.label == "drawer"]
+    for d in drawers:
+        assert d.bbox_size[2] <= DRAWER_ASPECT * d.bbox_size[1] + 1e-6
+        assert d.joint.t_range == pytest.approx((0, 0.4))
+    body = obj.parts[0]
+    assert body.bbox_size[2] == pytest.approx(1.36 * f, rel=1e-3) and body.bbox_size[1] == 1.5
+    assert body.bbox_center[2] - body.bbox_size[2] / 2 == pytest.approx(0.0)   # on the floor
+    for h in (p for p in obj.parts if p.label == "handle"):
+        assert h.bbox_size == pytest.approx((0.02, 0.12, 0.02))
+        assert h.bbox_center[2] == pytest.approx(obj.parts[h.parent].bbox_center[2])
+    assert lower_drawer_row(obj) is None                       # lowered: left alone
+    three = _drawer_row(3, 1.13)
+    three.parts[0].bbox_size[1] = 0.81
+    for p in three.parts[1:]:
+        p.bbox_center[1] *= 0.54
+        p.bbox_size[1] = min(p.bbox_size[1], 0.26) if p.label == "drawer" else p.bbox_size[1]
+    lower_drawer_row(three)
+    assert three.parts[0].bbox_size[2] == pytest.approx(MIN_HEIGHT)   # no lower than that
+    assert lower_drawer_row(_drawer_row(4, 1.36, door=True)) is None
+    assert lower_drawer_row(_drawer_row(2, 0.45)) is None      # 0.73 m wide drawers: fine
+    column = _drawer_row(1, 1.36)
+    assert lower_drawer_row(column) is None                    # one drawer is no row
+    assert height_said("a tall cabinet with four drawers side by side", "StorageFurniture", {})
+    assert height_said("a cabinet with four drawers side by side", "StorageFurniture",
+                       {"height": 1.2})
+    assert not height_said("a wide cabinet with four drawers side by side",
+                           "StorageFurniture", {"width": 1.5})

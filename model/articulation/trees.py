@@ -71,6 +71,8 @@ class DecodedTree:
                                        # facts; model.refine.arrange holds them in the layout)
     size: Optional[dict] = None        # the body's dimensions the prompt states (m;
                                        # model.refine.size gives them to the layout)
+    height_said: bool = False          # the prompt gives the body's height (a stated size, a
+                                       # size word, an everyday name's usual height)
 
     @property
     def num_nodes(self) -> int:

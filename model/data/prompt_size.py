@@ -404,6 +404,19 @@ def with_usual_size(text: str, category: str | None, stated: dict | None,
     return out
 
 
+def height_said(text: str, category: str | None, stated: dict | None) -> bool:
+    """Whether ``text`` gives the body's height: stated ("1.2 m tall", a length), said in size
+    words ("a tall cabinet", "a small chest": ``read_size_words``), or an everyday name's
+    usual height (``NAMED_SIZES``, ``NAMED_RANGES``, ``EVERYDAY_RANGES``)."""
+    if stated and ("height" in stated or "length" in stated):
+        return True
+    if read_size_words(text).keys() & {"height", "length", "size"}:
+        return True
+    named = (NAMED_SIZES.get(category or "", []) + NAMED_RANGES.get(category or "", [])
+             + EVERYDAY_RANGES.get(category or "", []))
+    return any("height" in dims for names, dims in named if _named(text, names))
+
+
 # A safe's keypad the text does not count ("a safe with a keypad", read as at least two
 # buttons): the data's middle keypad, 3 x 3 (model/data/synth/cabinets.py draws 1x3 to 4x3 on
 # a safe's door; no other category of the data has a keypad)

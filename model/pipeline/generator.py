@@ -27,8 +27,8 @@ from model.core.runtime import keep_heap_mapped, torch_threads
 from model.pipeline.api import (ExportResult, GeneratedObject, GenerationConfig,
                                 GenerationError)
 from model.pipeline.part_pool import PartPool, default_workers
-from model.data.prompt_size import (with_usual_keypad, with_usual_layout, with_usual_parts,
-                                    with_usual_size)
+from model.data.prompt_size import (height_said, with_usual_keypad, with_usual_layout,
+                                    with_usual_parts, with_usual_size)
 from model.pipeline.prompt_structure import spatial_for
 # checkpoint discovery and request checks, re-exported from their modules
 from model.pipeline.checkpoints import (STAGES, WEIGHTS_DIR, check_codebooks,  # noqa: F401
@@ -241,6 +241,8 @@ class Generator:
                                    decoded=tree.tokens[0, :3],
                                    spatial=stated.spatial) if stated else {}
             tree.size = {**said, **(given or {})} or None
+            tree.height_said = bool(given and ("height" in given or "length" in given)) or (
+                stated is not None and height_said(prompt, tree.category, stated.size))
         return trees, prompt, modality, timings
 
     def _stated_structure(self, expected, cond, mask, seed: int):
@@ -292,9 +294,12 @@ class Generator:
         """The layout refinement steps of :meth:`layout`, in place."""
         from model.refine import (arrange_stated, free_edge_handles, place_stated_sides,
                                   refine_layout, safe_keypads)
+        from model.refine.size import lower_drawer_row
         stated = tree.spatial if self.config.prompt_structure else None
         report["arranged"] = arrange_stated(obj, stated) + safe_keypads(obj, stated)
         report["layout"] = refine_layout(obj, stated=stated)
+        report["layout"]["drawer_row_lowered"] = None if tree.height_said else \
+            lower_drawer_row(obj)
         if stated:
             report["arranged"] += place_stated_sides(obj, stated)
         _keep_hinge_sides(obj, tree.hinges)

@@ -16,6 +16,8 @@ spawned at the origin of a simulator would sink into its ground plane or drop on
 """
 from __future__ import annotations
 
+from typing import Optional
+
 import numpy as np
 
 from model.core import ArticulatedObject
@@ -46,8 +48,17 @@ def scale_to_size(obj: ArticulatedObject, size: dict | None) -> dict | None:
         return None
     body = obj.parts[obj.root]
     s = size_factors(body.bbox_size, size)
-    pivot = body.bbox_center - np.array([0.0, 0.0, body.bbox_size[2] / 2.0])
     small = min(1.0, float(np.prod(s)) ** (1.0 / 3.0))
+    _scale_layout(obj, s, small)
+    return {"factors": [round(float(v), 4) for v in s], "controls": round(small, 4)}
+
+
+def _scale_layout(obj: ArticulatedObject, s: np.ndarray, small: float) -> None:
+    """Scale ``obj``'s layout in place by ``s`` per axis about the bottom centre of its body's
+    box: panels per axis, the other parts' sizes by ``small``; joint origins and slide travel
+    follow."""
+    body = obj.parts[obj.root]
+    pivot = body.bbox_center - np.array([0.0, 0.0, body.bbox_size[2] / 2.0])
     for p in obj.parts:
         p.bbox_center = pivot + (p.bbox_center - pivot) * s
         p.bbox_size = p.bbox_size * (s if p.label in PANELS else small)
@@ -57,7 +68,49 @@ def scale_to_size(obj: ArticulatedObject, size: dict | None) -> dict | None:
             a = np.asarray(j.axis, dtype=np.float64)
             f = float(np.linalg.norm(a * s) / max(np.linalg.norm(a), 1e-9))
             j.t_range = (j.t_range[0] * f, j.t_range[1] * f)
-    return {"factors": [round(float(v), 4) for v in s], "controls": round(small, 4)}
+
+
+# the data's drawers (model/data/synth/cabinets.py): a front at most DRAWER_ASPECT times as
+# tall as it is wide, in bands under DRAWER_BAND; storage bodies 0.4-1.9 m tall
+DRAWER_ASPECT = 1.2
+DRAWER_BAND = 0.45    # m
+MIN_HEIGHT = 0.4      # m
+
+
+def lower_drawer_row(obj: ArticulatedObject) -> Optional[float]:
+    """A storage body whose front holds only drawers, all in one row, each taller than
+    ``DRAWER_ASPECT`` times its width, is lowered (the layout scaled along z about the bottom
+    of the body, handles and knobs keeping their size) until its drawers are no taller than
+    that and than ``DRAWER_BAND``, the body no lower than ``MIN_HEIGHT``: the fill grows the
+    fronts to the body's height, and "a wide cabinet with four drawers side by side" had
+    drawers 1.3 m tall and 0.35 m wide where the data's rows of drawers are bands under
+    0.45 m. The pipeline does not call it where the prompt gives the height (a stated size,
+    a size word, an everyday name's usual height: ``prompt_size.height_said``). Returns the
+    factor applied, or None."""
+    from .arrange import FRONT
+    from .layout import _lohi, face_of
+    if obj.category != "StorageFurniture":
+        return None
+    root = obj.root
+    fronts = [i for i in obj.children(root) if obj.parts[i].label in ("drawer", "door")
+              and (face_of(obj, i) or (None,))[0] == FRONT]
+    if len(fronts) < 2 or any(obj.parts[i].label != "drawer" for i in fronts):
+        return None
+    boxes = [_lohi(obj.parts[i]) for i in fronts]
+    if min(hi[2] for _, hi in boxes) <= max(lo[2] for lo, _ in boxes):
+        return None                                    # not one row
+    want = [min(DRAWER_ASPECT * (hi[1] - lo[1]), DRAWER_BAND) / (hi[2] - lo[2])
+            for lo, hi in boxes]
+    f = min(1.0, min(want))
+    H = float(obj.parts[root].bbox_size[2])
+    f = max(f, MIN_HEIGHT / H) if H > MIN_HEIGHT else 1.0
+    if f > 0.99:
+        return None
+    _scale_layout(obj, np.array([1.0, 1.0, f]), 1.0)
+    for p in obj.parts:          # a part that kept its size fits on its parent
+        if p.label not in PANELS and p.parent >= 0:
+            p.bbox_size[2] = min(p.bbox_size[2], 0.8 * obj.parts[p.parent].bbox_size[2])
+    return round(f, 4)
 
 
 # m: where the data puts the centre of a body's box in x, y (model/data/synth): a USB stick's
