@@ -208,6 +208,8 @@ def test_parse_free_form(prompt, category, counts, lower, joints):
     # "above each of its three doors": one above each, in a row (read as a column at the top)
     ("a sideboard with a drawer above each of its three doors", "StorageFurniture drawer=3 "
      "door=3 drawer.above=door drawer.layout=row door.layout=row"),
+    ("a wardrobe with a drawer below each of the two doors", "StorageFurniture door=2 "
+     "drawer=2 drawer.below=door drawer.layout=row door.layout=row"),
     # a dryer is a laundry machine (the network alone made it an oven), a pendrive a USB stick
     ("a compact dryer with a door and one knob", "WashingMachine door=1 knob=1"),
     ("a pendrive with a cap", "USB cap=1"),

@@ -154,8 +154,10 @@ def _distributive_target(toks: list[_Tok], k: int) -> str | None:
         t = toks[j]
         if t.kind == "DIST" and j + 1 < k and toks[j + 1].text in ("side", "sides", "end", "ends"):
             break      # "a door at each end and three drawers": two doors, not per door
-        if t.kind == "DIST" and j + 1 < k and toks[j + 1].text == "of":
-            break      # "a drawer over each of its two doors": the doors are counted as said
+        if t.kind == "DIST" and j + 1 < k and (toks[j + 1].text == "of"
+                                               or t.text.endswith(" the")):
+            break      # "a drawer over each of its (the) two doors": the doors are counted
+                       # as said
         if t.kind == "DIST":
             for i in range(j + 1, k):
                 if toks[i].kind == "PART":
