@@ -361,3 +361,21 @@ def test_a_tall_row_of_drawers_lowers_its_body_to_the_data_s_drawer_shape():
                        {"height": 1.2})
     assert not height_said("a wide cabinet with four drawers side by side",
                            "StorageFurniture", {"width": 1.5})
+
+
+def test_a_stove_s_door_drops_down_unless_the_text_says_otherwise():
+    """"a stove with an oven door and four knobs on the front" had a side-hinged wall-oven
+    door with 4 of 4 seeds; generation holds a stove's, cooker's or range's one door hinged
+    at the bottom, opening down. A stated hinge or opening, two doors, another category or
+    a wall oven stay as read, and the parse (what the alignment metric checks) is unchanged."""
+    from model.data.prompt_size import with_usual_hinge
+    for text in ("a stove with an oven door and four knobs on the front",
+                 "a range with six knobs", "a cooker with a door"):
+        parsed = parse_prompt(text)
+        assert "hinge" not in (parsed.spatial.get("door") or {})
+        assert with_usual_hinge(text, parsed).spatial["door"] == {"hinge": ["bottom"],
+                                                                  "opens": ["down"]}
+    for text in ("a stove whose door opens to the left", "a stove with two doors",
+                 "a wall oven with a door", "a cabinet with a door"):
+        parsed = parse_prompt(text)
+        assert with_usual_hinge(text, parsed) == parsed

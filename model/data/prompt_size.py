@@ -444,6 +444,29 @@ def with_usual_keypad(text: str, expected):
                    spatial={**expected.spatial, "button": facts})
 
 
+# A stove's oven door drops down, hinged at the bottom, as three quarters of the data's ovens'
+# do (the rest are wall ovens hinged on a side); the network gave "a stove with an oven door
+# and four knobs on the front" a side-hinged door with 2 of 2 seeds
+DROP_DOOR_NAMES = ("stove", "cooker", "range")
+
+
+def with_usual_hinge(text: str, expected):
+    """``expected`` (a parsed prompt, ``ExpectedStructure``) with a stove's one door hinged
+    at the bottom, opening downwards (``DROP_DOOR_NAMES``), where the text says nothing of
+    the door's hinge or opening: what generation holds. Not a stated fact: the alignment
+    metric checks the prompt's own."""
+    from dataclasses import replace
+
+    if expected.category != "Oven" or expected.counts.get("door", 1) != 1 \
+            or not _named(text, DROP_DOOR_NAMES):
+        return expected
+    door = dict(expected.spatial.get("door") or {})
+    if door.get("hinge") or door.get("opens"):
+        return expected
+    door.update(hinge=["bottom"], opens=["down"])
+    return replace(expected, spatial={**expected.spatial, "door": door})
+
+
 # The usual moving parts of a bare name ("a dresser", "an oven": a category and no part): a
 # text model trained on descriptions that always list the parts decoded "a cabinet" as an
 # empty carcass. First match wins; the category's default last. Counts are the data's

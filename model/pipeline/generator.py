@@ -27,8 +27,8 @@ from model.core.runtime import keep_heap_mapped, torch_threads
 from model.pipeline.api import (ExportResult, GeneratedObject, GenerationConfig,
                                 GenerationError)
 from model.pipeline.part_pool import PartPool, default_workers
-from model.data.prompt_size import (height_said, with_usual_keypad, with_usual_layout,
-                                    with_usual_parts, with_usual_size)
+from model.data.prompt_size import (height_said, with_usual_hinge, with_usual_keypad,
+                                    with_usual_layout, with_usual_parts, with_usual_size)
 from model.pipeline.prompt_structure import spatial_for
 # checkpoint discovery and request checks, re-exported from their modules
 from model.pipeline.checkpoints import (STAGES, WEIGHTS_DIR, check_codebooks,  # noqa: F401
@@ -208,7 +208,8 @@ class Generator:
         stated = None
         if modality == "text" and keep is None and cfg.prompt_structure:
             from model.data.prompt_parse import parse_prompt
-            stated = with_usual_parts(prompt, with_usual_keypad(prompt, parse_prompt(prompt)))
+            stated = with_usual_hinge(prompt, with_usual_parts(
+                prompt, with_usual_keypad(prompt, parse_prompt(prompt))))
             if structure is None:
                 spec, splan = self._stated_structure(stated, cond, mask, seed)
 
