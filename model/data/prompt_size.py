@@ -446,7 +446,7 @@ def with_usual_keypad(text: str, expected):
 
 # A stove's oven door drops down, hinged at the bottom, as three quarters of the data's ovens'
 # do (the rest are wall ovens hinged on a side); the network gave "a stove with an oven door
-# and four knobs on the front" a side-hinged door with 2 of 2 seeds
+# and four knobs on the front" a side-hinged door with 4 of 4 seeds
 DROP_DOOR_NAMES = ("stove", "cooker", "range")
 
 

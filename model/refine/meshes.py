@@ -532,8 +532,8 @@ def fit_caps_to_necks(obj: ArticulatedObject, mans: dict) -> list[str]:
     reads as a "lid" ("a glass bottle with a twist-off lid") like a flip lid, a disc up to
     1.6 times the neck's width standing out round it, where the data's caps wrap the neck.
     The neck is the body's mesh in the slab ``RIM_DEPTH`` deep under the cap's lower face;
-    a cap on a body as wide as it (no neck) stays. Caps with parts on them are left. Returns the caps
-    fitted."""
+    a cap on a body as wide as it (no neck) stays. Caps with parts on them are left.
+    Returns the caps fitted."""
     if obj.category != "Bottle":
         return []
     fitted = []
