@@ -208,6 +208,20 @@ def test_parse_free_form(prompt, category, counts, lower, joints):
     # "above each of its three doors": one above each, in a row (read as a column at the top)
     ("a sideboard with a drawer above each of its three doors", "StorageFurniture drawer=3 "
      "door=3 drawer.above=door drawer.layout=row door.layout=row"),
+    # a count on each side of the front is as many on both, in two columns (three had been
+    # read); a share of the count said before it is not counted again
+    ("a dresser with 3 drawers on each side", "StorageFurniture drawer=6 drawer.layout=grid "
+     "drawer.rows=3 drawer.columns=2"),
+    ("a chest with six drawers, three drawers on each side", "StorageFurniture drawer=6 "
+     "drawer.layout=grid drawer.rows=3 drawer.columns=2"),
+    ("a sideboard with two doors at each end and three drawers in the middle",
+     "StorageFurniture door=4 drawer=3 door.hpos=left/right drawer.hpos=middle"),
+    ("a chest with seven drawers, one on top and six below in two columns",
+     "StorageFurniture drawer=7 drawer.columns=2 drawer.vpos=bottom/top"),
+    ("a cabinet with drawers: three on the right", "StorageFurniture drawer=3 drawer.hpos=right"),
+    # "two rows of drawers, three in each row": two rows of three (nothing had been counted)
+    ("a cabinet with two rows of drawers, three in each row", "StorageFurniture drawer=6 "
+     "drawer.layout=grid drawer.rows=2 drawer.columns=3"),
     ("a wardrobe with a drawer below each of the two doors", "StorageFurniture door=2 "
      "drawer=2 drawer.below=door drawer.layout=row door.layout=row"),
     # a dryer is a laundry machine (the network alone made it an oven), a pendrive a USB stick

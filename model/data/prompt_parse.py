@@ -75,6 +75,7 @@ class _Mention:
                                    # else counts this part kind)
     breakdown: bool = False        # splits an earlier count ("five drawers: two small drawers
                                    # on top and three large ones below"): not counted again
+    sided: bool = False            # a count on each of two sides ("3 drawers on each side")
 
 
 def _scan_quantifier(toks: list[_Tok], k: int, m: _Mention, motions: list) -> None:
@@ -229,19 +230,25 @@ def _elided_parts(sentence: str, last_part: str | None) -> str:
     right": a count of two or more said straight before a place names the part mentioned
     last before it (the six drawers had been read as three). "one on top" stays: one of
     those already counted ("two doors, one above the other"), as does "two on each side" (a
-    share of the count before it: "four drawers, two on each side"), and a count restating
-    the one just said ("two drawers, two at the bottom")."""
+    share of the count before it: "four drawers, two on each side"), and a count after a
+    counted part and a comma or colon, which shares that count out ("two drawers, two at the
+    bottom"; "seven drawers, one on top and six below")."""
     out, at = [], 0
     for m in _ELIDED.finditer(sentence):
         before = _tokenize(sentence[:m.start()])
         at_part = [j for j, t in enumerate(before) if t.kind == "PART"]
         label = before[at_part[-1]].value if at_part else last_part
-        said = [t.value for t in before[max(0, at_part[-1] - 3):at_part[-1]]
-                if t.kind == "NUM"] if at_part else []
-        restated = bool(before) and before[-1].kind == "PUNCT" and said[-1:] == \
-            [vocab.NUMBER_VALUES.get(m.group(1), None) or int(m.group(1))]
+        said = []                     # the count said with that part ("seven drawers")
+        for t in reversed(before[max(0, at_part[-1] - 3):at_part[-1]] if at_part else []):
+            if t.kind == "NUM":
+                said = [t.value]
+            if t.kind != "WORD" or t.text in STOP_WORDS:
+                break
+        # after a counted part and a comma or colon, a count shares out the one said ("seven
+        # drawers, one on top and six below": seven)
+        shared = bool(said) and any(t.kind == "PUNCT" for t in before[at_part[-1] + 1:])
         after_of = bool(before) and before[-1].text.lower() in ("of", "x", "by", "times")
-        if label and before and before[-1].kind != "PART" and not restated and not after_of:
+        if label and before and before[-1].kind != "PART" and not shared and not after_of:
             out += [sentence[at:m.end()], " " + vocab.plural(label)]
             at = m.end()
     return "".join(out) + sentence[at:]
@@ -269,6 +276,9 @@ def _read_mentions(toks: list[_Tok], si: int, mentions: list[_Mention],
             motion_links.append((own, t.value, False))
         if _on_both_sides(toks, k) and not m.plural and m.exact in (None, 1) and not m.zero:
             m.exact, m.lower, m.single, m.dist_head = 2, None, False, True
+        elif _on_both_sides(toks, k) and m.plural and (m.exact or 0) >= 2 and not m.zero:
+            m.exact, m.sided, m.dist_head = 2 * m.exact, True, True   # "3 drawers on each
+                                                                        # side": six
         dist = _distributive_target(toks, k)
         if dist and dist != t.value and not m.zero and not m.dist_head:
             m.dist_of = dist
@@ -358,8 +368,8 @@ def _mark_breakdowns(mentions: list[_Mention]) -> None:
             total += n.exact
             if total >= m.exact:
                 break
-        if total == m.exact and len(group) >= 2:
-            for n in group:
+        if total == m.exact and (len(group) >= 2 or group and group[0].sided):
+            for n in group:       # "six drawers, three drawers on each side": six
                 n.breakdown = True
 
 
@@ -539,10 +549,10 @@ def _tidy(out: ExpectedStructure, text: str) -> None:
 
 
 def _side_columns(out: ExpectedStructure, low: str) -> None:
-    """"three drawers on the left and three on the right": two columns of three (the six
-    had been made one column across the front; "two doors on the left and two on the
-    right" four full-width strips). Only equal counts of two or more, and only where
-    nothing else arranges those parts."""
+    """"three drawers on the left and three on the right" or "3 drawers on each side": two
+    columns of three (the six had been made one column across the front; "two doors on the
+    left and two on the right" four full-width strips). Only equal counts of two or more,
+    and only where nothing else arranges those parts."""
     for lab in ("drawer", "door"):
         facts = out.spatial.get(lab) or {}
         if sorted(facts.get("hpos") or []) != ["left", "right"] \
@@ -551,10 +561,15 @@ def _side_columns(out: ExpectedStructure, low: str) -> None:
         noun = rf"(?:[a-z-]+ )?{vocab.plural(lab)}"
         sides = r"on the (left|right)(?: side)?"
         m = re.search(rf"\b{_N} {noun} {sides},? and {_N}(?: {noun})? {sides}", low)
-        if not m or {m.group(2), m.group(4)} != {"left", "right"}:
+        each = re.search(rf"\b{_N} {noun} on (?:each|either|both) sides?\b", low)
+        if m and {m.group(2), m.group(4)} == {"left", "right"} and \
+                _num(m.group(1)) == _num(m.group(3)):
+            n = _num(m.group(1))
+        elif each:
+            n = _num(each.group(1))
+        else:
             continue
-        n = _num(m.group(1))
-        if n >= 2 and _num(m.group(3)) == n and out.counts.get(lab) == 2 * n:
+        if n >= 2 and out.counts.get(lab) == 2 * n:
             del facts["hpos"]
             facts.update(layout="grid", rows=n, columns=2)
 

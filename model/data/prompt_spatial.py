@@ -121,6 +121,11 @@ def _rewrite_counts(sentence: str) -> tuple[str, list[_Fact]]:
     sentence = re.sub(rf"\b{_N} (rows|columns|stacks) (?:with|containing|holding|of) {_N} "
                       rf"([a-z]+) (?:per|in each|each|a) (?:row|column|stack)\b",
                       r"\1 \2 of \3 \4", sentence)
+    # "two rows of drawers, three in each row" is "two rows of three drawers" (nothing had
+    # been counted)
+    sentence = re.sub(rf"\b{_N} (rows|columns) of ([a-z]+),? (?:with |each with )?{_N}"
+                      rf"(?: [a-z]+)? (?:in each|per|each|to a|in every) (?:row|column)\b",
+                      r"\1 \2 of \4 \3", sentence)
 
     # "a top row of five and a bottom row of five (drawers)" is "two rows of five"
     sentence = re.sub(rf"\b(?:an? |the )?top row of {_N}((?: [a-z]+)?),? (?:and|with|over|above|"
