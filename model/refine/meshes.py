@@ -567,6 +567,20 @@ LID_SEAT = 0.0008   # m: the data's flip lid rests this far over its neck (handh
 MAX_TRIM = 0.1      # the share of a body that a lid's seat may take off it
 
 
+def _seat_cut(lo, hi, body, n: int, up: bool, face: float) -> tuple[np.ndarray, np.ndarray]:
+    """(size, centre) of the box of Manifold ``body`` that a part on it (box ``lo``..``hi``,
+    on the ``up`` side of the body along axis ``n``) takes off it to seat on it: over the
+    part's outline plus ``LIP``, from ``LID_SEAT`` under the plane ``face`` outwards past
+    the body."""
+    blo, bhi = np.asarray(body.bounding_box(), dtype=np.float64).reshape(2, 3)
+    clo, chi = lo - LIP, hi + LIP
+    if up:
+        clo[n], chi[n] = face - LID_SEAT, max(hi[n], bhi[n]) + LIP
+    else:
+        clo[n], chi[n] = min(lo[n], blo[n]) - LIP, face + LID_SEAT
+    return chi - clo, (clo + chi) / 2
+
+
 def seat_lids(obj: ArticulatedObject, mans: dict) -> list[str]:
     """A bottle's body whose mesh rises into its flip lid ends ``LID_SEAT`` under the lid's
     underside, over the lid's outline plus ``LIP``: the shape prior fills the body's box, which
@@ -579,13 +593,8 @@ def seat_lids(obj: ArticulatedObject, mans: dict) -> list[str]:
         p = obj.parts[k]
         par = p.parent
         lo, hi = np.asarray(mans[k].bounding_box(), dtype=np.float64).reshape(2, 3)
-        blo, bhi = np.asarray(mans[par].bounding_box(), dtype=np.float64).reshape(2, 3)
-        clo, chi = lo - LIP, hi + LIP
-        if below < 0:        # the body under the lid: everything above the seat goes
-            clo[n], chi[n] = lo[n] - LID_SEAT, max(hi[n], bhi[n]) + LIP
-        else:
-            clo[n], chi[n] = min(lo[n], blo[n]) - LIP, hi[n] + LID_SEAT
-        cut = meshops.box(chi - clo, (clo + chi) / 2)
+        up = below < 0       # the body under the lid: everything above the seat goes
+        cut = meshops.box(*_seat_cut(lo, hi, mans[par], n, up, lo[n] if up else hi[n]))
         was = float(mans[par].volume())
         taken = float((mans[par] ^ cut).volume())
         if taken < 1e-9 or taken > MAX_TRIM * was:
@@ -624,13 +633,9 @@ def cap_necks(obj: ArticulatedObject, mans: dict) -> list[str]:
         up = p.bbox_center[n] >= obj.parts[par].bbox_center[n]
         t = float(np.clip(0.25 * (hi[n] - lo[n]), *CAP_TOP))
         a, b = (hi[n] - t, hi[n]) if up else (lo[n], lo[n] + t)
-        blo, bhi = np.asarray(mans[par].bounding_box(), dtype=np.float64).reshape(2, 3)
-        clo, chi = lo - LIP, hi + LIP
-        if up:
-            clo[n], chi[n] = a - LID_SEAT, max(b, bhi[n]) + LIP
-        else:
-            clo[n], chi[n] = min(a, blo[n]) - LIP, b + LID_SEAT
-        cut = meshops.box(chi - clo, (clo + chi) / 2)
+        size, centre = _seat_cut(lo, hi, mans[par], n, up, a if up else b)
+        cut = meshops.box(size, centre)
+        clo, chi = centre - size / 2, centre + size / 2
         core = RING_CORE * (hi - lo)
         core[n] = hi[n] - lo[n]
         ring = float((mans[k] ^ meshops.box(core, (lo + hi) / 2)).volume()) \
