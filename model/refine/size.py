@@ -23,7 +23,8 @@ import numpy as np
 from model.core import ArticulatedObject
 from model.data.prompt_size import AXIS
 
-from .layout import _move_subtree
+from .arrange import FRONT
+from .layout import _lohi, _move_subtree, face_of
 
 PANELS = ("body", "door", "drawer", "lid", "tray")
 
@@ -87,8 +88,6 @@ def lower_drawer_row(obj: ArticulatedObject) -> Optional[float]:
     0.45 m. The pipeline does not call it where the prompt gives the height (a stated size,
     a size word, an everyday name's usual height: ``prompt_size.height_said``). Returns the
     factor applied, or None."""
-    from .arrange import FRONT
-    from .layout import _lohi, face_of
     if obj.category != "StorageFurniture":
         return None
     root = obj.root
