@@ -9,7 +9,9 @@ Output folder (built in a temp folder beside ``out_dir`` and renamed into place)
     out_dir/preview.png        openness 0 / 0.5 / 1 side by side
 
 Frames: link frame of a part = its joint origin in the object frame with identity rotation
-(the root's link frame is the object frame), so a URDF joint origin is
+(the root's link frame is the object frame; a part on a fixed joint, whose decoded origin
+means nothing, has its frame at its box centre, so its TF frame sits on the part), so a
+URDF joint origin is
 ``origin_child - origin_parent`` and every visual / collision origin is ``-origin_child``.
 Posed link frame = ``T_part @ Trans(origin_part)`` with ``T_part`` from
 ``ArticulatedObject.link_transforms``. A screw joint becomes a prismatic joint
@@ -82,9 +84,15 @@ def joint_name(part: Part) -> str:
 
 
 def link_origin(obj: ArticulatedObject, index: int) -> np.ndarray:
-    """Link frame origin of part ``index`` in the object frame at rest (root: 0)."""
+    """Link frame origin of part ``index`` in the object frame at rest: 0 for the root, the
+    box centre for a part on a fixed joint (no axis to sit on; a decoded origin there is
+    noise, metres away at times), else the joint origin."""
     p = obj.parts[index]
-    return np.zeros(3) if p.parent < 0 else np.asarray(p.joint.origin, dtype=np.float64)
+    if p.parent < 0:
+        return np.zeros(3)
+    if p.joint.type == JointType.FIXED:
+        return np.asarray(p.bbox_center, dtype=np.float64)
+    return np.asarray(p.joint.origin, dtype=np.float64)
 
 
 def posed_link_frames(obj: ArticulatedObject, values=None, *, ratio=None) -> dict[str, np.ndarray]:
