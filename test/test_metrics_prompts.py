@@ -170,6 +170,19 @@ def test_parse_free_form(prompt, category, counts, lower, joints):
      "StorageFurniture drawer=6 drawer.per_row=3/3"),
     ("a chest of drawers: five drawers, the top one split into two",
      "StorageFurniture drawer=6 drawer.per_row=2/1/1/1/1"),
+    # doors under a row of doors stand side by side; a count shared out between the tiers
+    # ("four doors, two on top and two below" had been four full-width doors in a column)
+    ("a cupboard with two doors on top and two doors at the bottom",
+     "StorageFurniture door=4 door.per_row=2/2"),
+    ("a tall pantry cabinet with four doors, two on top and two below",
+     "StorageFurniture door=4 door.per_row=2/2"),
+    ("a hutch with two doors above and two below", "StorageFurniture door=4 door.per_row=2/2"),
+    ("a cabinet with three doors, one on top and two below",
+     "StorageFurniture door=3 door.per_row=1/2"),
+    ("a chest with five drawers, two on top and three below",
+     "StorageFurniture drawer=5 drawer.per_row=2/1/1/1"),
+    ("a cabinet with three drawers, one on top and two below side by side",
+     "StorageFurniture drawer=3 drawer.per_row=1/2"),
     # "at each end" is two, one on each side, and multiplies nothing after it (the three
     # drawers had been read as three per door: six)
     ("a sideboard with a door at each end and three drawers in the middle",
@@ -217,7 +230,7 @@ def test_parse_free_form(prompt, category, counts, lower, joints):
     ("a sideboard with two doors at each end and three drawers in the middle",
      "StorageFurniture door=4 drawer=3 door.hpos=left/right drawer.hpos=middle"),
     ("a chest with seven drawers, one on top and six below in two columns",
-     "StorageFurniture drawer=7 drawer.columns=2 drawer.vpos=bottom/top"),
+     "StorageFurniture drawer=7 drawer.per_row=1/2/2/2"),
     ("a cabinet with drawers: three on the right", "StorageFurniture drawer=3 drawer.hpos=right"),
     # "two rows of drawers, three in each row": two rows of three (nothing had been counted)
     ("a cabinet with two rows of drawers, three in each row", "StorageFurniture drawer=6 "

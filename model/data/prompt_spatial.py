@@ -68,11 +68,18 @@ def _tiers(m: re.Match) -> str:
 
 _ADJ = r"((?:[a-z-]+ ){0,2}?)"
 _ON_TOP = r"(?:on top|at the top|across the top|along the top|up top)"
-_BELOW = r"(?:below|beneath|underneath|under them|below them|beneath them|at the bottom)"
+_BELOW = (r"(?:below|beneath|underneath|under them|below them|beneath them|at the bottom|"
+          r"on the bottom|down below)")
 _FRONT = r"(drawers?|doors?)"
+# "two doors above and two below": "above" with nothing after it is "on top"
+_UP = rf"(?:{_ON_TOP}|above(?=,? and\b))"
 _TOP_ROW = re.compile(
-    rf"\b{_N} {_ADJ}{_FRONT} (side by side |in a row )?{_ON_TOP},? (?:and|with|over|above) "
+    rf"\b{_N} {_ADJ}{_FRONT} (side by side |in a row )?{_UP},? (?:and|with|over|above) "
     rf"{_N} {_ADJ}{_FRONT}( side by side| in a row)?(?: {_BELOW})?\b")
+# "four doors, two on top and two below": the count shared out between the tiers
+_SHARES = re.compile(
+    rf"\b{_N} {_ADJ}{_FRONT},? (?:with )?{_N} (?:of them )?{_UP},? and {_N} {_BELOW}"
+    rf"( side by side| in a row| in {_N} columns)?")
 _SPLIT = re.compile(
     rf"\b{_N} {_FRONT},? (?:with )?the (?:top|upper|first) (?:one|[a-z]+) (?:is |being )?"
     r"(?:split|divided) (?:into|in) (?:two|2)(?: (?:small(?:er)? )?(?:ones|halves|[a-z]+))?\b")
@@ -86,16 +93,37 @@ def _top_row(sentence: str) -> tuple[str, list[_Fact]]:
     1, 1] (the top one becomes two)."""
     facts: list[_Fact] = []
 
+    def rows(word: str, a: int, b: int, row2) -> list[int]:
+        # doors below a row of doors stand side by side (a cupboard's "two doors on top and
+        # two at the bottom" is two pairs; a full-width door there is twice as wide as any
+        # door of the data); drawers below are one to a row unless said side by side, as a
+        # chest's long drawers under its small ones
+        return [a, b] if row2 or word.startswith("door") else [a] + [1] * b
+
     def tiers(m: re.Match) -> str:
         n1, w1, n2, w2, row2 = (m.group(k) for k in (1, 3, 5, 7, 8))
         if w1.rstrip("s") != w2.rstrip("s") or _num(n1) < 2 or "stack" in m.group(2):
             return m.group(0)
         a, b = _num(n1), _num(n2)
-        facts.append(_Fact("per_row", [[a, b] if row2 else [a] + [1] * b], m.start(),
-                           m.start(), "pre"))
+        facts.append(_Fact("per_row", [rows(w1, a, b, row2)], m.start(), m.start(), "pre"))
         # the counts as said, so that a restated count ("five drawers: two small ones on
         # top and three ...") is read as before; the row is the per_row fact's
         return f"{n1} {m.group(2)}{w1} and {n2} {m.group(6)}{w2}"
+
+    def shares(m: re.Match) -> str:
+        n, adj, w = _num(m.group(1)), m.group(2), m.group(3)
+        a, b = _num(m.group(4)), _num(m.group(5))
+        cols = _num(m.group(7)) if m.group(7) else 0
+        if a + b != n or n < 2 or "stack" in adj or (cols and (cols < 2 or b % cols)):
+            return m.group(0)
+        if cols:            # "one on top and six below in two columns": 1, then rows of 2
+            per_row = [a] + [cols] * (b // cols)
+        elif a >= 2 or w.startswith("door") or m.group(6):
+            per_row = rows(w, a, b, m.group(6))
+        else:               # "one on top and two below": a column, as the words say
+            return m.group(0)
+        facts.append(_Fact("per_row", [per_row], m.start(), m.start(), "pre"))
+        return f"{m.group(1)} {adj}{w}"
 
     def split(m: re.Match) -> str:
         n, w = _num(m.group(1)), m.group(2)
@@ -104,7 +132,7 @@ def _top_row(sentence: str) -> tuple[str, list[_Fact]]:
         facts.append(_Fact("per_row", [[2] + [1] * (n - 1)], m.start(), m.start(), "pre"))
         return f"{n + 1} {w}"
 
-    sentence = _TOP_ROW.sub(tiers, sentence)
+    sentence = _SHARES.sub(shares, _TOP_ROW.sub(tiers, sentence))
     return _SPLIT.sub(split, sentence), facts
 
 
