@@ -183,6 +183,21 @@ def test_parse_free_form(prompt, category, counts, lower, joints):
      "StorageFurniture drawer=5 drawer.per_row=2/1/1/1"),
     ("a cabinet with three drawers, one on top and two below side by side",
      "StorageFurniture drawer=3 drawer.per_row=1/2"),
+    # "N over M drawers" counts N + M (it had been M)
+    ("a dresser with 3 over 3 drawers", "StorageFurniture drawer=6 drawer.layout=grid "
+     "drawer.rows=2 drawer.columns=3"),
+    ("a chest with two over three drawers", "StorageFurniture drawer=5 drawer.per_row=2/1/1/1"),
+    ("a cabinet with 1 over 2 drawers", "StorageFurniture drawer=3 drawer.per_row=1/2"),
+    # "over" before a part is "above" ("over 2 m tall" places nothing)
+    ("a base cabinet with one drawer over two doors", "StorageFurniture drawer=1 door=2 "
+     "drawer.above=door"),
+    ("a cabinet over two metres tall with two doors", "StorageFurniture door=2"),
+    # a number compound that names no part counts nothing ("4-digit" had been four dials);
+    # an N-key keypad has N buttons
+    ("a fireproof safe with a 4-digit combination dial", "Safe dial=1"),
+    ("a safe with a 3-spoke handle", "Safe handle=1"),
+    ("a wall safe with a 10-key keypad", "Safe button=10"),
+    ("a safe with a keypad of 12 keys", "Safe button=12"),
     # "at each end" is two, one on each side, and multiplies nothing after it (the three
     # drawers had been read as three per door: six)
     ("a sideboard with a door at each end and three drawers in the middle",

@@ -239,6 +239,8 @@ def _sentences(text: str) -> list[str]:
                   text)
     text = re.sub(r"\(?\b[a-z]+[- ]style\b\)?", " ", text)   # "(knob style)" is a look, not a part
     text = re.sub(r"\s+", " ", text)
+    # "a 10-key keypad" (or "a 12 key keypad", "a keypad of 10 keys") counts its buttons
+    text = _KEYS.sub(lambda m: f"{m.group(1) or m.group(2)} keypad buttons", text)
     text = _NUMBER_COMPOUND.sub(_compound, text)
     return [s.strip() for s in re.split(r"[.!?\n]+", text) if s.strip()]
 
@@ -248,12 +250,24 @@ _NUMBER_COMPOUND = re.compile(
     + r")-([a-z]+)\b")
 
 
+_NUMBER = r"(\d+|" + "|".join(sorted(vocab.NUMBER_WORDS[1:13], key=len, reverse=True)) + r")"
+_KEYS = re.compile(
+    rf"\b{_NUMBER}[- ]keys? (?:key ?pad|number ?pad|numpad)\b"
+    rf"|\b(?:key ?pad|number ?pad|numpad) (?:of|with) {_NUMBER} keys\b")
+
+
 def _compound(m) -> str:
-    """"a three-drawer dresser" counts drawers; "a three-spoke handle", "a 4-burner range"
-    count no part: that number is part of an adjective, kept as one word."""
+    """"a three-drawer dresser" counts drawers; "a three-spoke handle", "a 4-burner range",
+    "a 4-digit dial" count no part: that number is part of an adjective, kept as one word
+    (digits as their word: the tokenizer reads any digits as a count)."""
     _, table = _lexicon()
     kind = table.get(m.group(2), ("WORD",))[0]
-    return m.group(0) if kind == "PART" else f"{m.group(1)}{m.group(2)}"
+    if kind == "PART":
+        return m.group(0)
+    n = m.group(1)
+    if n.isdigit():
+        n = vocab.NUMBER_WORDS[int(n)] if int(n) < len(vocab.NUMBER_WORDS) else "many"
+    return f"{n}{m.group(2)}"
 
 
 def _motion_in_phrase(phrase: str) -> frozenset | None:

@@ -167,6 +167,19 @@ def _rewrite_counts(sentence: str) -> tuple[str, list[_Fact]]:
     sentence = re.sub(rf"\b{_N} (?:upper|top) ((?:[a-z-]+ ){{0,2}}?)(?:and|plus|over|above) "
                       rf"{_N} (?:lower|bottom) ([a-z-]+)(?: ([a-z]+))?\b", _tiers, sentence)
 
+    # "3 over 3 drawers" is two rows of three (it had been three drawers), "2 over 3 drawers"
+    # two drawers on top and three below (a chest's "two over three"), "1 over 2 drawers" one
+    # over a row of two
+    def over(m: re.Match) -> str:
+        a, b, adj, w = m.groups()
+        if _num(a) == _num(b):
+            return f"two rows of {a} {adj}{w}"
+        w = w if w.endswith("s") else w + "s"
+        if _num(a) == 1:             # "1 over 2 drawers": a wide one over a row of two
+            return f"{_num(a) + _num(b)} {adj}{w}, {a} on top and {b} below side by side"
+        return f"{a} {adj}{w} on top and {b} {adj}{w} below"
+    sentence = re.sub(rf"\b{_N} over {_N} {_ADJ}{_FRONT}\b", over, sentence)
+
     # "two small drawers on top and three large drawers below": a row of two over a column of
     # three; "five drawers, the top one split into two": a row of two over four
     sentence, tiered = _top_row(sentence)
@@ -273,7 +286,8 @@ _SPATIAL_PATTERNS: list[tuple[str, str, str]] = [
     ("rows+columns", rf"\b{_N} (rows|columns),? (?:and |by |x |× )?{_N} (?:rows|columns)\b", "post"),
     ("rows", rf"\bin {_N} (?:horizontal )?rows\b", "post"),
     ("columns", rf"\bin {_N} (?:vertical )?columns\b", "post"),
-    ("relation", r"\b(above|on top of|below|under|underneath|beneath)\b(?!-)(?: (?:the|a|an|its|their|both))?", "post"),
+    # "over" only before a part ("one drawer over two doors"; "over 2 m tall" is no place)
+    ("relation", r"\b(above|on top of|below|under|underneath|beneath|over)\b(?!-)(?: (?:the|a|an|its|their|both))?", "post"),
     ("sideof", r"\b(?:to|on|at) the (left|right)(?:[- ]hand)?(?: side)? of\b(?: (?:the|a|an|its|their|both))?", "post"),
     ("hpos", r"\b(?:the |its )?(left|right)[- ](?:hand )?half (?:is|has|holds|contains|with|:)", "pre"),
     ("hpos", r"\b(?:on|at|to|in) the (left|right)(?:[- ]hand)?(?: side| end| half)?\b", "post"),
@@ -344,7 +358,7 @@ def _spatial_facts(sentence: str, toks: list[_Tok]) -> list[_Fact]:
                     rel = "above" if vals[0] in _ABOVE else "below"
                     facts.append(_Fact(rel, [part.value], a, part.end, "post", part.value))
                     b = part.end
-                else:   # "a door underneath": below the part named before it, if any
+                elif vals[0] != "over":   # "a door underneath": below the part named before
                     facts.append(_Fact("relprev", ["above" if vals[0] in _ABOVE else "below"],
                                        a, b, "post"))
             elif key == "across":
