@@ -2050,3 +2050,48 @@ def test_a_bottle_flip_lid_is_hinged_at_its_underside():
     top = lid.bbox_center + np.array([lid.bbox_size[0] / 2, 0, 0])        # the free edge
     axis = np.asarray(lid.joint.axis)
     assert np.cross(axis, top - lid.joint.origin)[2] > 0                  # opens upwards
+
+
+def _four_doors(handles):
+    """A pantry's four doors (two pairs, 0.45 x 0.9 m), each with the handle ``handles[k]``
+    = (size, centre) decoded on its own."""
+    parts = [_part("body_0", "body", -1, (0.5, 0.92, 1.9), (0, 0, 0.95))]
+    for k, (y, z) in enumerate([(0.23, 1.42), (-0.23, 1.42), (0.23, 0.48), (-0.23, 0.48)]):
+        hinge = 0.455 if y > 0 else -0.455
+        parts.append(_part(f"door_{k}", "door", 0, (0.02, 0.45, 0.9), (0.26, y, z),
+                           Joint(JointType.REVOLUTE, (0.26, hinge, z), (0, 0, 1 if y > 0 else -1),
+                                 r_range=(0, 1.6))))
+    for k, (size, centre) in enumerate(handles):
+        parts.append(_part(f"handle_{k}", "handle", k + 1, size, centre))
+    return ArticulatedObject(category="StorageFurniture", name="pantry", parts=parts)
+
+
+def test_the_handles_on_a_bodys_doors_are_made_one_size():
+    """Three bars and a knob decoded on a pantry's four doors: all four get the bars' size
+    (most of them share it), the same stand-off off their doors, each kept where it was on
+    its door, so the pipeline meshes one handle shape for the four; a bar longer than a door
+    is tall, two handles that would overlap on one door, or a prompt placing the handles
+    leave them as decoded."""
+    from model.pipeline.generator import instances
+    from model.refine import match_handles
+    bar, knob = (0.03, 0.015, 0.2), (0.035, 0.03, 0.03)
+    handles = [(bar, (0.285, 0.05, 1.2)), (bar, (0.285, -0.05, 1.2)),
+               (bar, (0.285, 0.05, 0.7)), (knob, (0.29, -0.05, 0.6))]
+    obj = _four_doors(handles)
+    assert match_handles(obj) == 1
+    hs = [p for p in obj.parts if p.label == "handle"]
+    assert all(np.allclose(h.bbox_size, bar) for h in hs)
+    assert all(h.bbox_center[0] == pytest.approx(0.285) for h in hs)       # one stand-off
+    assert np.allclose(hs[3].bbox_center[1:], (-0.05, 0.6))                # where it was
+    assert len(instances(obj, [5, 6, 7, 8])) == 3                          # one shape
+    near_edge = _four_doors(handles[:3] + [(knob, (0.29, -0.05, 0.06))])  # at the door's foot
+    assert match_handles(near_edge) == 1
+    h = near_edge.parts[8]
+    assert h.bbox_center[2] - h.bbox_size[2] / 2 >= 0.03 + 0.005 - 1e-9     # inside the door
+    too_long = _four_doors([((0.03, 0.015, 0.95), c) for _, c in handles[:3]] + handles[3:])
+    assert match_handles(too_long) == 0
+    assert np.allclose(too_long.parts[8].bbox_size, knob)
+    assert match_handles(_four_doors(handles), {"handle": {"vpos": ["top"]}}) == 0
+    pair = _four_doors(handles)
+    pair.parts.append(_part("handle_4", "handle", 4, knob, (0.29, -0.05, 0.68)))  # 8 cm above
+    assert match_handles(pair) == 0                 # as bars the two on door 3 would overlap

@@ -293,8 +293,8 @@ class Generator:
 
     def _refine_layout(self, obj: ArticulatedObject, tree, report: dict) -> None:
         """The layout refinement steps of :meth:`layout`, in place."""
-        from model.refine import (arrange_stated, free_edge_handles, place_stated_sides,
-                                  refine_layout, safe_keypads)
+        from model.refine import (arrange_stated, free_edge_handles, match_handles,
+                                  place_stated_sides, refine_layout, safe_keypads)
         from model.refine.size import lower_drawer_row
         stated = tree.spatial if self.config.prompt_structure else None
         report["arranged"] = arrange_stated(obj, stated) + safe_keypads(obj, stated)
@@ -305,6 +305,7 @@ class Generator:
             report["arranged"] += place_stated_sides(obj, stated)
         _keep_hinge_sides(obj, tree.hinges)
         report["layout"]["handles_to_free_edge"] = free_edge_handles(obj, stated)
+        report["layout"]["handles_matched"] = match_handles(obj, stated)
 
     def _geometry(self, tree, gen, timings: dict, keep: Optional[ArticulatedObject],
                   shape) -> ArticulatedObject:

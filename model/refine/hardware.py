@@ -1,0 +1,106 @@
+"""Matching hardware: the handles on one body's doors (or on its drawers) made one size.
+
+The network decodes each handle's box on its own, so a pantry's four doors came out with a
+long bar on three and a small knob on the fourth, and a chest's four drawers with bars and
+knobs mixed; built furniture has one kind of pull on its fronts, and the pipeline then meshes
+that one shape once (``model.pipeline.generator.instances``). Run after the handles' places
+are final (``free_edge_handles``).
+"""
+from __future__ import annotations
+
+from typing import Optional
+
+import numpy as np
+
+from model.core import ArticulatedObject, JointType
+
+from .layout import _lohi, face_of
+
+SAME = 0.005     # m: handle boxes within this on every side are one size already
+MARGIN = 0.005   # m: a handle stays this far inside its front's outline
+FRONTS = ("door", "drawer")
+
+
+def _groups(obj: ArticulatedObject) -> dict[tuple, list[int]]:
+    """Fixed, childless handles on doors (or on drawers) of one parent, by (parent of the
+    fronts, front label)."""
+    out: dict[tuple, list[int]] = {}
+    for i, h in enumerate(obj.parts):
+        if h.label != "handle" or h.parent < 0 or h.joint.type != JointType.FIXED \
+                or obj.children(i):
+            continue
+        front = obj.parts[h.parent]
+        if front.label in FRONTS and front.parent >= 0:
+            out.setdefault((front.parent, front.label), []).append(i)
+    return out
+
+
+def _representative(obj: ArticulatedObject, group: list[int]) -> int:
+    """The handle whose size most of ``group`` share (within ``SAME``); of equals, the
+    smallest (it fits the most fronts)."""
+    def votes(i):
+        return sum(np.all(np.abs(obj.parts[i].bbox_size - obj.parts[j].bbox_size) <= SAME)
+                   for j in group)
+    return max(group, key=lambda i: (votes(i), -float(np.prod(obj.parts[i].bbox_size))))
+
+
+def _fitted(obj: ArticulatedObject, i: int, size: np.ndarray, standoff: float,
+            face: tuple[int, float]) -> Optional[np.ndarray]:
+    """Handle ``i``'s centre with box ``size``: in the plane of its front where it was,
+    moved inside the front's outline by ``MARGIN``; ``standoff`` out of the front's face.
+    None where the size does not fit the front."""
+    h, front = obj.parts[i], obj.parts[obj.parts[i].parent]
+    k, side = face
+    lo, hi = _lohi(front)
+    centre = h.bbox_center.copy()
+    for a in range(3):
+        if a == k:
+            continue
+        room = (hi[a] - lo[a]) / 2 - MARGIN - size[a] / 2
+        if room < 0:
+            return None
+        centre[a] = np.clip(centre[a], front.bbox_center[a] - room, front.bbox_center[a] + room)
+    centre[k] = front.bbox_center[k] + side * (front.bbox_size[k] / 2 + standoff)
+    return centre
+
+
+def match_handles(obj: ArticulatedObject, stated: Optional[dict] = None) -> int:
+    """Every handle of a group (the fixed handles on one parent's doors, or on its drawers)
+    given the size most of them share and the same stand-off from its front, each kept where
+    it sits on its front (moved inside the outline where the new size would cross it).
+    A group is left as decoded where the size does not fit one of its fronts or would make
+    two handles on one front overlap; handles the prompt places (``stated``) are left.
+    -> handles resized."""
+    if (stated or {}).get("handle"):
+        return 0
+    changed = 0
+    for group in _groups(obj).values():
+        if len(group) < 2:
+            continue
+        rep = _representative(obj, group)
+        r = obj.parts[rep]
+        face = face_of(obj, rep)
+        if face is None:
+            continue
+        k, side = face
+        rf = obj.parts[r.parent]
+        standoff = side * (r.bbox_center[k] - rf.bbox_center[k]) - rf.bbox_size[k] / 2
+        todo = [i for i in group if i != rep]
+        if any(face_of(obj, i) != face for i in todo):
+            continue
+        placed = {i: _fitted(obj, i, r.bbox_size, standoff, face) for i in todo}
+        if any(c is None for c in placed.values()):
+            continue
+        boxes = {i: (c - r.bbox_size / 2, c + r.bbox_size / 2) for i, c in placed.items()}
+        if any(obj.parts[i].parent == obj.parts[j].parent
+               and np.all((boxes[i][0] < boxes[j][1]) & (boxes[j][0] < boxes[i][1]))
+               for i in boxes for j in boxes if i < j):
+            continue
+        for i, centre in placed.items():
+            h = obj.parts[i]
+            if np.allclose(h.bbox_size, r.bbox_size) and np.allclose(h.bbox_center, centre):
+                continue
+            h.joint.origin = np.asarray(h.joint.origin, dtype=np.float64) + centre - h.bbox_center
+            h.bbox_center, h.bbox_size = centre, r.bbox_size.copy()
+            changed += 1
+    return changed
