@@ -674,6 +674,33 @@ def _doors_under_drawers():
         _door(1, (0.017, 0.218, 0.057), (0.2, 0.11, 0.25), (0.21, 0.22, 0.25))])
 
 
+def test_two_drawers_each_side_of_two_doors_are_stacks_in_the_side_columns():
+    """"a TV cabinet with two drawers on the left, two doors in the middle and two drawers
+    on the right" as the network laid it out: four drawers in a row across the top over the
+    two doors. Four fronts stated left and right of a "middle" group: two to a side, each
+    side column one stack, the doors the middle column; nothing overlaps."""
+    obj = ArticulatedObject(category="StorageFurniture", name="tv", parts=[
+        _part("body_0", "body", -1, (0.45, 1.5, 0.6), (0, 0, 0.3)),
+        *[_drawer(k, (0.03, y, 0.48), (0.4, 0.34, 0.18)) for k, y in
+          enumerate((-0.54, -0.18, 0.18, 0.54))],
+        _door(0, (0.02, 0.7, 0.34), (0.215, -0.36, 0.2), (0.225, -0.71, 0.2), (0, 0, -1)),
+        _door(1, (0.02, 0.7, 0.34), (0.215, 0.36, 0.2), (0.225, 0.71, 0.2))])
+    _layout_same(obj, "a TV cabinet with two drawers on the left, two doors in the middle and "
+                      "two drawers on the right")
+    assert sorted(part_position(obj, i)[0] for i in (1, 2, 3, 4)) == \
+        ["left", "left", "right", "right"]
+    assert [part_position(obj, i)[0] for i in (5, 6)] == ["middle", "middle"]
+    for side in ("left", "right"):
+        group = [i for i in (1, 2, 3, 4) if part_position(obj, i)[0] == side]
+        assert _grid_of(obj, group) == ("column", 2, 1)
+    fronts = [obj.parts[i] for i in range(1, 7)]
+    for a in fronts:
+        for b in fronts:
+            alo, ahi = a.bbox_center - a.bbox_size / 2, a.bbox_center + a.bbox_size / 2
+            blo, bhi = b.bbox_center - b.bbox_size / 2, b.bbox_center + b.bbox_size / 2
+            assert a is b or not np.all((alo < bhi) & (blo < ahi))
+
+
 def test_doors_either_side_of_a_drawer_stack_are_three_columns():
     """"a storage cabinet with a door on the left and a door on the right and two drawers in
     the middle" (seed 2): the network put the two doors under the drawers as 22 x 6 cm

@@ -199,14 +199,18 @@ def _flanks(spatial: Optional[dict]) -> list[tuple[str, str]]:
 
 
 def _flanked(obj: ArticulatedObject, outer: str, inner: str, spatial: dict) -> bool:
-    """Two fronts of ``outer`` either side of the fronts of ``inner`` on one face: three equal
-    columns across the face (within its frame) over the height they all cover, each outer
-    front a side column, the inner group the middle one (one stack, or as the prompt
-    arranges it: "three drawers in a row in the middle" had come out a stack). The network
-    had put the two doors of "a door on the left and a door on the right and two drawers in
-    the middle" under the drawers as 22 x 6 cm slivers (seed 2)."""
+    """The fronts of ``outer`` (an even number: as many on each side) either side of the
+    fronts of ``inner`` on one face: three equal columns across the face (within its frame)
+    over the height they all cover, the outer fronts the side columns (the left half of
+    them by the network's order the left one; two or more to a side one stack), the inner
+    group the middle one (one stack, or as the prompt arranges it: "three drawers in a row
+    in the middle" had come out a stack). The network had put the two doors of "a door on
+    the left and a door on the right and two drawers in the middle" under the drawers as
+    22 x 6 cm slivers (seed 2), and "two drawers on the left, two doors in the middle and
+    two drawers on the right" as a row of drawers over a row of doors and drawers."""
     sides, mid = _front_group(obj, outer), _front_group(obj, inner)
-    if sides is None or mid is None or len(sides) != 2 or not _same_face(obj, sides, mid):
+    if sides is None or mid is None or len(sides) < 2 or len(sides) % 2 \
+            or not _same_face(obj, sides, mid):
         return False
     lo, hi = _union([obj.parts[i] for i in sides + mid])
     plo, phi = _cspan(obj, [obj.parts[sides[0]].parent], H)
@@ -214,13 +218,18 @@ def _flanked(obj: ArticulatedObject, outer: str, inner: str, spatial: dict) -> b
     w = (phi - plo - 2 * frame - 2 * GAP) / 3
     left = plo + frame
     order = sorted(sides, key=lambda i: obj.parts[i].bbox_center[H])
-    for g in ([order[0]], mid, [order[1]]):
+    half = len(order) // 2
+    columns = (order[:half], mid, order[half:])
+    for g in columns:
         for i in g:
             centre, size = obj.parts[i].bbox_center.copy(), obj.parts[i].bbox_size.copy()
             centre[H], size[H] = left + w / 2, w
             centre[V], size[V] = (lo[V] + hi[V]) / 2, hi[V] - lo[V]
             _place(obj, i, centre, size)
         left += w + GAP
+    for g in (columns[0], columns[2]):
+        if len(g) > 1:      # a side column of several: one stack
+            _lay_out(obj, g, [1] * len(g))
     facts = spatial.get(inner) or {}
     if len(mid) > 1:        # in the middle column: as the prompt arranges it, else one stack
         _lay_out(obj, mid, _grid(facts, len(mid)) or [1] * len(mid))
