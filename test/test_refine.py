@@ -1627,6 +1627,32 @@ def test_a_screw_cap_wider_than_its_neck_is_fitted_round_the_neck():
     assert fit_caps_to_necks(obj, wide) == []                   # no neck: stays
 
 
+def test_a_screw_cap_narrower_than_the_neck_s_mouth_is_grown_and_set_on_it():
+    """"a thermos with a screw lid" (6 of 6 seeds): a 9 mm cap sunk 1 cm into the 41 mm neck,
+    hidden. It is grown across its axis to the mouth (the body's last RIM_DEPTH) plus
+    CAP_WRAP all round, about the mouth's centre, and set on the mouth; its joint moves with
+    it. Fitted, it is left alone."""
+    from model.core import meshops
+    from model.refine.meshes import CAP_WRAP, fit_caps_to_necks
+    obj = ArticulatedObject(category="Bottle", name="thermos", parts=[
+        _part("body_0", "body", -1, (0.077, 0.077, 0.213), (0, 0, 0.1065)),
+        _part("cap_0", "cap", 0, (0.009, 0.009, 0.009), (0.001, 0, 0.1975),
+              Joint(JointType.SCREW, (0.001, 0, 0.193), (0, 0, 1), t_range=(0, 0.004),
+                    r_range=(0, 12.0)))])
+    body = meshops.union_manifolds([meshops.box((0.077, 0.077, 0.18), (0, 0, 0.09)),
+                                    meshops.box((0.041, 0.041, 0.033), (0, 0, 0.1965))])
+    mans = {0: body, 1: meshops.box((0.009, 0.009, 0.009), (0.001, 0, 0.1975))}
+    assert fit_caps_to_necks(obj, mans) == ["cap_0"]
+    cap = obj.parts[1]
+    lo, hi = np.asarray(mans[1].bounding_box()).reshape(2, 3)
+    assert hi[:2] - lo[:2] == pytest.approx((0.041 + 2 * CAP_WRAP,) * 2)
+    assert (lo + hi)[:2] / 2 == pytest.approx((0, 0), abs=1e-9)         # about the mouth
+    assert lo[2] == pytest.approx(0.213)                                  # set on the mouth
+    assert cap.bbox_size == pytest.approx((0.041 + 2 * CAP_WRAP,) * 2 + (0.009,))
+    assert cap.joint.origin == pytest.approx((0, 0, 0.213))            # moved with it
+    assert fit_caps_to_necks(obj, mans) == []
+
+
 def test_a_neck_through_a_ring_cap_ends_under_the_cap_s_new_top():
     """"a thermos with a screw-on cap" seed 2: the cap came out a ring round the neck, lower
     than the body's top, and the neck stood 8 mm above it (carving the cap's lift then left

@@ -5,6 +5,7 @@ still collides. Exact booleans through manifold3d; every output mesh is a closed
 from __future__ import annotations
 
 import logging
+from typing import Optional
 
 import numpy as np
 
@@ -505,13 +506,13 @@ def fit_lids_to_necks(obj: ArticulatedObject, mans: dict) -> list[str]:
 
 
 def _scale_part(obj: ArticulatedObject, mans: dict, k: int, scale: np.ndarray,
-                centre: np.ndarray) -> None:
+                centre: np.ndarray, shift: Optional[np.ndarray] = None) -> None:
     """Part ``k`` (manifold, mesh, collision pieces, box, joint origin) scaled by ``scale``
-    per axis about ``centre``."""
+    per axis about ``centre``, then moved by ``shift``."""
     p = obj.parts[k]
     T = np.eye(4)
     T[:3, :3] = np.diag(scale)
-    T[:3, 3] = centre * (1.0 - scale)
+    T[:3, 3] = centre * (1.0 - scale) + (0.0 if shift is None else shift)
     mans[k] = mans[k].transform(meshops.affine34(T))
     if p.mesh is not None:
         p.mesh.apply_transform(T)
@@ -526,14 +527,33 @@ CAP_WRAP = 0.0045   # m: the most the data's screw caps reach past their neck al
                     # skirt's 0.8 mm clearance, a 1.5-3 mm wall and knurled ribs; handheld.py)
 
 
+NECK = 0.9     # a body's mouth narrower than this share of the body is a neck's
+NARROW = 0.8   # a cap narrower than this share of the mouth under it does not cover it (a
+               # cap that wraps its neck is wider than the neck, and its lip at most 5 %)
+
+
+def _slab_of(man, lo, hi, n: int, a: float, b: float):
+    """(lo, hi) of Manifold ``man`` between ``a`` and ``b`` along axis ``n`` across the box
+    ``lo``..``hi`` (grown by 1 m), or None where nothing of it is there."""
+    slo, shi = lo - 1.0, hi + 1.0
+    slo[n], shi[n] = a, b
+    part = man ^ meshops.box(shi - slo, (slo + shi) / 2)
+    if part.volume() < 1e-12:
+        return None
+    return np.asarray(part.bounding_box(), dtype=np.float64).reshape(2, 3)
+
+
 def fit_caps_to_necks(obj: ArticulatedObject, mans: dict) -> list[str]:
     """A bottle's screw cap wider than the neck under it plus ``CAP_WRAP`` all round is
     scaled across its axis, about the neck's centre, to that size: the network sizes a cap it
     reads as a "lid" ("a glass bottle with a twist-off lid") like a flip lid, a disc up to
     1.6 times the neck's width standing out round it, where the data's caps wrap the neck.
     The neck is the body's mesh in the slab ``RIM_DEPTH`` deep under the cap's lower face;
-    a cap on a body as wide as it (no neck) stays. Caps with parts on them are left.
-    Returns the caps fitted."""
+    a cap on a body as wide as it (no neck) stays. A cap narrower than ``NARROW`` of the
+    neck's mouth (the body's last ``RIM_DEPTH``, where that is narrower than ``NECK`` of the
+    body or the cap is sunk into it) is grown to the mouth plus ``CAP_WRAP`` all round and
+    set on it: "a thermos with a screw lid" had a 9 mm cap sunk 1 cm into a 41 mm neck,
+    hidden (6 of 6 seeds). Caps with parts on them are left. Returns the caps fitted."""
     if obj.category != "Bottle":
         return []
     fitted = []
@@ -545,20 +565,36 @@ def fit_caps_to_necks(obj: ArticulatedObject, mans: dict) -> list[str]:
         lo, hi = np.asarray(mans[k].bounding_box(), dtype=np.float64).reshape(2, 3)
         blo, bhi = np.asarray(mans[p.parent].bounding_box(), dtype=np.float64).reshape(2, 3)
         up = p.bbox_center[n] >= obj.parts[p.parent].bbox_center[n]
-        slo, shi = blo - 1.0, bhi + 1.0          # the slab under the cap, across the body
-        slo[n], shi[n] = (lo[n] - RIM_DEPTH, lo[n]) if up else (hi[n], hi[n] + RIM_DEPTH)
-        neck = mans[p.parent] ^ meshops.box(shi - slo, (slo + shi) / 2)
-        if neck.volume() < 1e-12:
+        across = [d for d in range(3) if d != n]
+        end = bhi[n] if up else blo[n]
+        mouth = _slab_of(mans[p.parent], blo, bhi, n, *((end - RIM_DEPTH, end) if up
+                                                         else (end, end + RIM_DEPTH)))
+        # narrower than a neck's mouth, or sunk into the body's top (a cap on a body as wide
+        # as its top, no neck, stays)
+        narrow = mouth is not None and any(
+            hi[d] - lo[d] < NARROW * (mouth[1][d] - mouth[0][d]) for d in across) and (
+            any(mouth[1][d] - mouth[0][d] < NECK * (bhi[d] - blo[d]) for d in across)
+            or ((end - hi[n]) if up else (lo[n] - end)) > CAP_RISE)
+        neck = mouth if narrow else _slab_of(
+            mans[p.parent], blo, bhi, n, *((lo[n] - RIM_DEPTH, lo[n]) if up
+                                           else (hi[n], hi[n] + RIM_DEPTH)))
+        if neck is None:
             continue
-        nlo, nhi = np.asarray(neck.bounding_box(), dtype=np.float64).reshape(2, 3)
-        scale, centre = np.ones(3), np.zeros(3)
-        for d in (d for d in range(3) if d != n):
+        nlo, nhi = neck
+        scale, centre, shift = np.ones(3), np.zeros(3), np.zeros(3)
+        for d in across:
             want = float(nhi[d] - nlo[d]) + 2 * CAP_WRAP
-            scale[d] = min(1.0, want / max(hi[d] - lo[d], 1e-9))
+            scale[d] = want / max(hi[d] - lo[d], 1e-9)
+            if not narrow:
+                scale[d] = min(1.0, scale[d])
             centre[d] = float(nlo[d] + nhi[d]) / 2
-        if scale.min() > 0.999:
+        if narrow:              # on the mouth, not round it: the grown cap is no sleeve;
+            shift[n] = max(0.0, end - lo[n]) if up else min(0.0, end - hi[n])
+            for d in across:    # centred on it (grown, an offset would grow with it)
+                shift[d] = (centre[d] - (lo[d] + hi[d]) / 2) * scale[d]
+        if np.abs(scale - 1.0).max() < 1e-3 and not shift.any():
             continue
-        _scale_part(obj, mans, k, scale, centre)
+        _scale_part(obj, mans, k, scale, centre, shift)
         fitted.append(p.name)
     return fitted
 
