@@ -183,6 +183,9 @@ def test_parse_free_form(prompt, category, counts, lower, joints):
      "StorageFurniture drawer=5 drawer.per_row=2/1/1/1"),
     ("a cabinet with three drawers, one on top and two below side by side",
      "StorageFurniture drawer=3 drawer.per_row=1/2"),
+    # no column of one ("stacked" said of a washer-dryer stack)
+    ("a stacked washer with a door hinged on the right", "WashingMachine door=1 "
+     "door:revolute door.hinge=right"),
     # "N over M drawers" counts N + M (it had been M)
     ("a dresser with 3 over 3 drawers", "StorageFurniture drawer=6 drawer.layout=grid "
      "drawer.rows=2 drawer.columns=3"),

@@ -524,8 +524,10 @@ def _tidy(out: ExpectedStructure, text: str) -> None:
             R, C = facts["rows"], facts["columns"]
             facts["layout"] = "grid" if R > 1 and C > 1 else ("row" if R == 1 else "column")
     for lab, facts in list(out.spatial.items()):
-        if out.counts.get(lab) == 1 and facts.get("layout") == "row" and "rows" not in facts:
-            del facts["layout"]        # "one drawer across the top": no row of one
+        if out.counts.get(lab) == 1 and facts.get("layout") in ("row", "column") \
+                and "rows" not in facts and "columns" not in facts:
+            del facts["layout"]        # "one drawer across the top": no row of one; "a
+            # stacked washer with a door": no column of one
         # "two doors side by side and a drawer above each door": as many above a row, a row;
         # "two doors and a drawer below each door" (or "below each of its two doors"): one
         # under each, so both side by side
