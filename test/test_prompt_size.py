@@ -363,6 +363,32 @@ def test_a_tall_row_of_drawers_lowers_its_body_to_the_data_s_drawer_shape():
                            "StorageFurniture", {"width": 1.5})
 
 
+def test_a_drawer_taller_than_the_data_s_drawers_is_shortened_from_below():
+    """"a cabinet with a drawer on the left and a door on the right": the fill tiled the
+    left column with its one drawer, 1.2 m tall and 0.43 m wide (no drawer of the data is
+    taller than DRAWER_ASPECT times its width). It is made that tall, its top edge kept;
+    its handle, decoded low on it, is moved onto what is left of it; its slide keeps its
+    travel. The door, drawers of that shape already and other categories stay."""
+    from model.refine.size import DRAWER_ASPECT, cap_drawer_height
+    obj = _drawer_row(2, 1.3, door=True)
+    drawer, handle, door = obj.parts[1], obj.parts[2], obj.parts[3]
+    handle.bbox_center[2] = 0.1                               # low on the drawer
+    top = drawer.bbox_center[2] + drawer.bbox_size[2] / 2
+    door_box = (door.bbox_center.copy(), door.bbox_size.copy())
+    assert cap_drawer_height(obj) == 1
+    assert drawer.bbox_size[2] == pytest.approx(DRAWER_ASPECT * drawer.bbox_size[1])
+    assert drawer.bbox_center[2] + drawer.bbox_size[2] / 2 == pytest.approx(top)
+    lo = top - drawer.bbox_size[2]
+    assert lo + 0.01 - 1e-9 <= handle.bbox_center[2] <= top - 0.01 + 1e-9   # on the front
+    assert drawer.joint.t_range == pytest.approx((0, 0.4))
+    assert np.allclose(door.bbox_center, door_box[0]) and np.allclose(door.bbox_size, door_box[1])
+    assert cap_drawer_height(obj) == 0                        # that shape now: left alone
+    assert cap_drawer_height(_drawer_row(4, 0.45)) == 0       # drawers wider than tall
+    oven = _drawer_row(2, 1.3, door=True)
+    oven.category = "Oven"
+    assert cap_drawer_height(oven) == 0
+
+
 def test_a_stove_s_door_drops_down_unless_the_text_says_otherwise():
     """"a stove with an oven door and four knobs on the front" had a side-hinged wall-oven
     door with 4 of 4 seeds; generation holds a stove's, cooker's or range's one door hinged

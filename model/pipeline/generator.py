@@ -295,12 +295,13 @@ class Generator:
         """The layout refinement steps of :meth:`layout`, in place."""
         from model.refine import (arrange_stated, free_edge_handles, match_handles,
                                   place_stated_sides, refine_layout, safe_keypads)
-        from model.refine.size import lower_drawer_row
+        from model.refine.size import cap_drawer_height, lower_drawer_row
         stated = tree.spatial if self.config.prompt_structure else None
         report["arranged"] = arrange_stated(obj, stated) + safe_keypads(obj, stated)
         report["layout"] = refine_layout(obj, stated=stated)
         report["layout"]["drawer_row_lowered"] = None if tree.height_said else \
             lower_drawer_row(obj)
+        report["layout"]["drawers_shortened"] = cap_drawer_height(obj)
         if stated:
             report["arranged"] += place_stated_sides(obj, stated)
         _keep_hinge_sides(obj, tree.hinges)

@@ -112,6 +112,44 @@ def lower_drawer_row(obj: ArticulatedObject) -> Optional[float]:
     return round(f, 4)
 
 
+def cap_drawer_height(obj: ArticulatedObject) -> int:
+    """A storage drawer whose front is taller than ``DRAWER_ASPECT`` times its width (none of
+    the data's is: synth-7) is made that tall, its top edge kept, the rest of its cell left
+    open; its handles stay on its front. The fill tiles a column with the one drawer stated
+    beside a door ("a cabinet with a drawer on the left and a door on the right": a drawer
+    1.2 m tall and 0.43 m wide), and a stated height keeps a row of drawers from being
+    lowered ("a low TV stand with three drawers side by side": 0.5 m tall, 0.34 m wide).
+    Run after the fill and ``lower_drawer_row``. -> drawers shortened."""
+    if obj.category != "StorageFurniture":
+        return 0
+    done = 0
+    for i, p in enumerate(obj.parts):
+        face = face_of(obj, i) if p.label == "drawer" else None
+        if face is None or face[0] == 2:
+            continue
+        width = float(p.bbox_size[1 - face[0]])        # across the face, level
+        height = DRAWER_ASPECT * width
+        if p.bbox_size[2] <= height + 1e-6:
+            continue
+        top = float(p.bbox_center[2] + p.bbox_size[2] / 2)
+        p.bbox_size = p.bbox_size.copy()
+        p.bbox_size[2] = height
+        p.bbox_center = p.bbox_center.copy()
+        p.bbox_center[2] = top - height / 2
+        origin = np.asarray(p.joint.origin, dtype=np.float64).copy()
+        origin[2] = np.clip(origin[2], top - height, top)
+        p.joint.origin = origin
+        lo, hi = top - height, top
+        for c in obj.children(i):                      # handles stay on the front
+            q = obj.parts[c]
+            half = min(float(q.bbox_size[2]) / 2, height / 2)
+            z = float(np.clip(q.bbox_center[2], lo + half, hi - half))
+            if z != q.bbox_center[2]:
+                _move_subtree(obj, c, np.array([0.0, 0.0, z - q.bbox_center[2]]))
+        done += 1
+    return done
+
+
 # m: where the data puts the centre of a body's box in x, y (model/data/synth): a USB stick's
 # casing is centred and its plug reaches 1.1-1.3 cm past it (synth-v6: the box centre sits
 # 5.6-6.4 mm in front of the axis); every other category's body is centred
