@@ -223,6 +223,22 @@ def test_alignment_checks_opening_arrangement_and_position():
     assert not alignment_of("three drawers below the door", row).spatial_ok
 
 
+def test_beside_is_checked_as_side_by_side_either_way_round():
+    """"a drawer beside a door": the drawer group is all on one side of the door group,
+    left or right, at a height the door spans; stacked above it is not beside it."""
+    line = "StorageFurniture drawer=1 door=1 drawer.beside=door"
+    assert ExpectedStructure.from_line(line).to_line() == line
+    stacked = _cabinet("left", drawers=1)                  # the drawer above the door
+    assert alignment_of("a cabinet with a drawer beside a door", stacked).spatial == \
+        {"position": False}
+    for y in (-0.3, 0.3):                                  # on the left, on the right
+        obj = _cabinet("left", drawers=1, door_y=-y)
+        d = next(p for p in obj.parts if p.label == "drawer")
+        d.bbox_center = np.array([0.19, y, 0.4])
+        assert alignment_of("a cabinet with a drawer beside a door", obj).spatial == \
+            {"position": True}
+
+
 def test_a_stated_top_row_is_checked_row_by_row():
     """"two drawers on top and two below": parts per row, top row first, as the spatial
     summary reads them; the annotation line keeps their order."""

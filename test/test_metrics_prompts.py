@@ -183,6 +183,16 @@ def test_parse_free_form(prompt, category, counts, lower, joints):
      "StorageFurniture drawer=5 drawer.per_row=2/1/1/1"),
     ("a cabinet with three drawers, one on top and two below side by side",
      "StorageFurniture drawer=3 drawer.per_row=1/2"),
+    # "beside" / "next to" / "alongside" a part: side by side, either way round ("a drawer
+    # beside a door" had been read as nothing, and laid out above it)
+    ("a cabinet with a drawer beside a door", "StorageFurniture drawer=1 door=1 "
+     "drawer.beside=door"),
+    ("a cabinet with a door and a drawer next to it", "StorageFurniture door=1 drawer=1 "
+     "drawer.beside=door"),
+    ("a washer with a dial and three buttons alongside the dial", "WashingMachine dial=1 "
+     "button=3 button.beside=dial"),
+    ("a bank of lockers: three doors next to each other", "StorageFurniture door=3 "
+     "door.layout=row"),
     # no column of one ("stacked" said of a washer-dryer stack)
     ("a stacked washer with a door hinged on the right", "WashingMachine door=1 "
      "door:revolute door.hinge=right"),

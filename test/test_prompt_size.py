@@ -384,6 +384,13 @@ def test_a_drawer_taller_than_the_data_s_drawers_is_shortened_from_below():
     assert np.allclose(door.bbox_center, door_box[0]) and np.allclose(door.bbox_size, door_box[1])
     assert cap_drawer_height(obj) == 0                        # that shape now: left alone
     assert cap_drawer_height(_drawer_row(4, 0.45)) == 0       # drawers wider than tall
+    low = _drawer_row(3, 1.3)                  # a bottom row: shortened from above
+    for p in low.parts[1:]:
+        if p.label == "drawer":
+            p.bbox_size[2], p.bbox_center[2] = 0.6, 0.32
+    assert cap_drawer_height(low) == 3
+    assert all(p.bbox_center[2] - p.bbox_size[2] / 2 == pytest.approx(0.02)
+               for p in low.parts if p.label == "drawer")
     oven = _drawer_row(2, 1.3, door=True)
     oven.category = "Oven"
     assert cap_drawer_height(oven) == 0

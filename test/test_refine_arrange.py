@@ -125,6 +125,27 @@ def test_a_door_stated_on_the_left_is_mirrored_there_and_still_opens_outwards():
     assert place_stated_sides(obj, {"door": {"hpos": ["left"]}}) == []
 
 
+def test_a_drawer_stated_beside_a_door_is_put_beside_it():
+    """"a cabinet with a drawer beside a door" as decoded: a full-width drawer over a
+    full-width door. The two are banded side by side across the front (the drawer on the
+    side the network put more of it, here the viewer's right), neither overlapping."""
+    from model.data.spatial import is_beside
+    cab = ArticulatedObject(category="StorageFurniture", name="base", parts=[
+        _part("body_0", "body", -1, (0.5, 0.8, 0.9), (0, 0, 0.45)),
+        _drawer(0, (0.05, 0.02, 0.75), (0.4, 0.74, 0.2)),
+        _door(0, (0.02, 0.74, 0.6), (0.24, 0.0, 0.33), (0.25, -0.37, 0.33), axis=(0, 0, -1)),
+    ])
+    assert not is_beside(spatial_summary(cab), "drawer", "door")
+    _layout_same(cab, "a cabinet with a drawer beside a door")
+    sp = spatial_summary(cab)
+    assert is_beside(sp, "drawer", "door")
+    assert part_position(cab, 1)[0] == "right" and part_position(cab, 2)[0] == "left"
+    a, b = cab.parts[1], cab.parts[2]
+    alo, ahi = a.bbox_center - a.bbox_size / 2, a.bbox_center + a.bbox_size / 2
+    blo, bhi = b.bbox_center - b.bbox_size / 2, b.bbox_center + b.bbox_size / 2
+    assert not np.all((alo < bhi) & (blo < ahi))
+
+
 def test_drawers_stated_above_the_doors_swap_top_and_bottom_but_an_oven_does_not():
     cab = ArticulatedObject(category="StorageFurniture", name="base", parts=[
         _part("body_0", "body", -1, (0.5, 1.0, 0.9), (0, 0, 0.45)),

@@ -114,8 +114,9 @@ def lower_drawer_row(obj: ArticulatedObject) -> Optional[float]:
 
 def cap_drawer_height(obj: ArticulatedObject) -> int:
     """A storage drawer whose front is taller than ``DRAWER_ASPECT`` times its width (none of
-    the data's is: synth-7) is made that tall, its top edge kept, the rest of its cell left
-    open; its handles stay on its front. The fill tiles a column with the one drawer stated
+    the data's is: synth-7) is made that tall, its top edge kept (its bottom edge where that
+    is nearer its parent's bottom: a bottom row stays at the bottom), the rest of its cell
+    left open; its handles stay on its front. The fill tiles a column with the one drawer stated
     beside a door ("a cabinet with a drawer on the left and a door on the right": a drawer
     1.2 m tall and 0.43 m wide), and a stated height keeps a row of drawers from being
     lowered ("a low TV stand with three drawers side by side": 0.5 m tall, 0.34 m wide).
@@ -131,15 +132,20 @@ def cap_drawer_height(obj: ArticulatedObject) -> int:
         height = DRAWER_ASPECT * width
         if p.bbox_size[2] <= height + 1e-6:
             continue
-        top = float(p.bbox_center[2] + p.bbox_size[2] / 2)
+        lo, hi = float(p.bbox_center[2] - p.bbox_size[2] / 2), \
+            float(p.bbox_center[2] + p.bbox_size[2] / 2)
+        plo, phi = _lohi(obj.parts[p.parent])
+        if lo - plo[2] < phi[2] - hi - 1e-6:      # nearer its parent's bottom: kept there
+            hi = lo + height
+        else:
+            lo = hi - height
         p.bbox_size = p.bbox_size.copy()
         p.bbox_size[2] = height
         p.bbox_center = p.bbox_center.copy()
-        p.bbox_center[2] = top - height / 2
+        p.bbox_center[2] = (lo + hi) / 2
         origin = np.asarray(p.joint.origin, dtype=np.float64).copy()
-        origin[2] = np.clip(origin[2], top - height, top)
+        origin[2] = np.clip(origin[2], lo, hi)
         p.joint.origin = origin
-        lo, hi = top - height, top
         for c in obj.children(i):                      # handles stay on the front
             q = obj.parts[c]
             half = min(float(q.bbox_size[2]) / 2, height / 2)
