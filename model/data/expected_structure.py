@@ -22,14 +22,16 @@ SPATIAL_KEYS: dict[str, tuple[str, ...]] = {
     "vpos": ("top", "middle", "bottom"),
     "above": (),    # values: part labels
     "below": (),
+    "beside": (),   # side by side with them, either way round ("a drawer beside a door")
     "per_row": ("ints",),   # parts per row, top row first ("2/1/1": two on top of a column)
 }
 SPATIAL_KINDS = {"hinge": "hinge", "opens": "opening", "layout": "arrangement",
                  "rows": "arrangement", "columns": "arrangement", "hpos": "position",
-                 "vpos": "position", "above": "position", "below": "position",
+                 "vpos": "position", "above": "position", "below": "position", "beside": "position",
                  "per_row": "arrangement"}
 ARRANGEMENT_KEYS = frozenset(k for k, kind in SPATIAL_KINDS.items() if kind == "arrangement")
 POSITION_KEYS = frozenset(k for k, kind in SPATIAL_KINDS.items() if kind == "position")
+RELATION_KEYS = ("above", "below", "beside")   # facts whose values are other part labels
 
 
 @dataclass
@@ -104,7 +106,7 @@ class ExpectedStructure:
                 vals = val.split("/")
                 bad = [v for v in vals if v not in SPATIAL_KEYS[key] and not
                        (SPATIAL_KEYS[key] in (("int",), ("ints",)) and v.isdigit())
-                       and not (key in ("above", "below") and v in labels)]
+                       and not (key in RELATION_KEYS and v in labels)]
                 if bad:
                     raise ValueError(f"{it!r}: {bad} not among {SPATIAL_KEYS[key]}")
                 fact = int(vals[0]) if SPATIAL_KEYS[key] == ("int",) else \

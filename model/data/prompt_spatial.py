@@ -278,7 +278,8 @@ _SPATIAL_PATTERNS: list[tuple[str, str, str]] = [
     ("grid-bare", rf"\b(?:arranged |laid out |set out )?(?:in )?{_N}\s?(?:x|×|by)\s?{_N}\b"
                   rf"(?!\s?(?:cm|mm|m|in|inch|inches|ft|feet|foot|meters?|metres?|centimet\w*|\"|'))", "post"),
     ("over", rf"\b{_N} over {_N}\b", "post"),
-    ("relit", r"\b(above|below|under|underneath|beneath|on top of) (?:it|them)\b", "post"),
+    ("relit", r"\b(above|below|under|underneath|beneath|on top of|beside|next to|alongside) "
+              r"(?:it|them)\b", "post"),
     ("vpos+hpos", r"\b(?:on|at|in) the (top|bottom)[- ](left|right|cent(?:er|re))\b", "post"),
     ("vpos+row", r"\b(?:across|along) the (top|bottom)\b"
                  r"|\b(?:in|on|along|across) the (top|bottom|upper|lower) row\b", "post"),
@@ -287,7 +288,9 @@ _SPATIAL_PATTERNS: list[tuple[str, str, str]] = [
     ("rows", rf"\bin {_N} (?:horizontal )?rows\b", "post"),
     ("columns", rf"\bin {_N} (?:vertical )?columns\b", "post"),
     # "over" only before a part ("one drawer over two doors"; "over 2 m tall" is no place)
-    ("relation", r"\b(above|on top of|below|under|underneath|beneath|over)\b(?!-)(?: (?:the|a|an|its|their|both))?", "post"),
+    ("relation", r"\b(above|on top of|below|under|underneath|beneath|over|beside|next to"
+                 r"|alongside)\b(?!-)(?! eachother| oneanother)(?: (?:the|a|an|its|their|both))?",
+     "post"),
     ("sideof", r"\b(?:to|on|at) the (left|right)(?:[- ]hand)?(?: side)? of\b(?: (?:the|a|an|its|their|both))?", "post"),
     ("hpos", r"\b(?:the |its )?(left|right)[- ](?:hand )?half (?:is|has|holds|contains|with|:)", "pre"),
     ("hpos", r"\b(?:on|at|to|in) the (left|right)(?:[- ]hand)?(?: side| end| half)?\b", "post"),
@@ -310,6 +313,11 @@ _SPATIAL_PATTERNS: list[tuple[str, str, str]] = [
 ]
 _COMPILED = [(k, re.compile(r), m) for k, r, m in _SPATIAL_PATTERNS]
 _ABOVE = {"above", "over", "on top of"}
+_BESIDE = {"beside", "next to", "alongside"}
+
+
+def _relation(word: str) -> str:
+    return "above" if word in _ABOVE else "beside" if word in _BESIDE else "below"
 _PRE_SIDE = {"left": ("hpos", "left"), "right": ("hpos", "right"), "left-hand": ("hpos", "left"),
              "right-hand": ("hpos", "right"), "top": ("vpos", "top"), "bottom": ("vpos", "bottom"),
              "upper": ("vpos", "top"), "lower": ("vpos", "bottom")}
@@ -355,11 +363,11 @@ def _spatial_facts(sentence: str, toks: list[_Tok]) -> list[_Fact]:
                                            implied=True))
                         b = part.end
                 elif part is not None:
-                    rel = "above" if vals[0] in _ABOVE else "below"
+                    rel = _relation(vals[0])
                     facts.append(_Fact(rel, [part.value], a, part.end, "post", part.value))
                     b = part.end
                 elif vals[0] != "over":   # "a door underneath": below the part named before
-                    facts.append(_Fact("relprev", ["above" if vals[0] in _ABOVE else "below"],
+                    facts.append(_Fact("relprev", [_relation(vals[0])],
                                        a, b, "post"))
             elif key == "across":
                 facts.append(_Fact("columns", [_num(vals[0])], a, b, mode))
@@ -378,7 +386,7 @@ def _spatial_facts(sentence: str, toks: list[_Tok]) -> list[_Fact]:
                 # "and, below them, two doors": about the part named next
                 before = [t for t in toks if t.end <= a and t.kind in ("PART", "PUNCT")]
                 mode2 = "post" if before and before[-1].kind == "PART" else "next"
-                facts.append(_Fact("relit", ["above" if vals[0] in _ABOVE else "below"], a, b, mode2))
+                facts.append(_Fact("relit", [_relation(vals[0])], a, b, mode2))
             elif key == "rows+columns":
                 first, other = _num(vals[0]), _num(vals[2])
                 R, C = (first, other) if vals[1] == "rows" else (other, first)
@@ -548,6 +556,8 @@ def _attach(facts: list[_Fact], toks: list[_Tok], earlier: list[str],
                      and t.value != target]
             if other:
                 f = _Fact(f.values[0], [other[-1]], f.start, f.end, f.mode)
+            elif f.values[0] == "beside":   # beside nothing named: no place
+                continue
             else:
                 f = _Fact("vpos", ["top" if f.values[0] == "above" else "bottom"], f.start,
                           f.end, f.mode)

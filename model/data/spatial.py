@@ -148,7 +148,8 @@ def spatial_summary(obj: ArticulatedObject) -> dict[str, dict]:
     ``hinge`` (doors, lids): sides their hinges are on; ``opens``: where they open (down, up,
     sideways); ``layout`` / ``rows`` / ``columns`` / ``per_row`` (see :func:`arrangement`);
     ``hpos`` / ``vpos``: where the parts sit on the body; ``z``: [lowest bottom, highest top]
-    of the group's boxes (for "above" / "below" between groups).
+    of the group's boxes (for "above" / "below" between groups); ``y``: the same across the
+    front (for "beside").
     """
     out: dict[str, dict] = {}
     for label in vocab.COUNTABLE_LABELS:
@@ -169,6 +170,10 @@ def spatial_summary(obj: ArticulatedObject) -> dict[str, dict]:
         lo = [float(obj.parts[i].bbox_center[2] - abs(obj.parts[i].bbox_size[2]) / 2) for i in idx]
         hi = [float(obj.parts[i].bbox_center[2] + abs(obj.parts[i].bbox_size[2]) / 2) for i in idx]
         f["z"] = [min(lo), max(hi)]
+        f["y"] = [min(float(obj.parts[i].bbox_center[1] - abs(obj.parts[i].bbox_size[1]) / 2)
+                      for i in idx),
+                  max(float(obj.parts[i].bbox_center[1] + abs(obj.parts[i].bbox_size[1]) / 2)
+                      for i in idx)]
         f["z_centres"] = [min(float(obj.parts[i].bbox_center[2]) for i in idx),
                           max(float(obj.parts[i].bbox_center[2]) for i in idx)]
         out[label] = f
@@ -182,3 +187,15 @@ def is_above(spatial: dict, a: str, b: str) -> Optional[bool]:
     if a not in spatial or b not in spatial:
         return None
     return spatial[a]["z"][0] > spatial[b]["z"][1] - 0.01
+
+
+def is_beside(spatial: dict, a: str, b: str) -> Optional[bool]:
+    """Group ``a`` and group ``b`` side by side, either way round: every part of one is left
+    of every part of the other (boxes overlapping across the front by at most 1 cm), and
+    their heights overlap. None when either group is missing."""
+    if a not in spatial or b not in spatial:
+        return None
+    (ay0, ay1), (by0, by1) = spatial[a]["y"], spatial[b]["y"]
+    (az0, az1), (bz0, bz1) = spatial[a]["z"], spatial[b]["z"]
+    apart = ay1 < by0 + 0.01 or by1 < ay0 + 0.01
+    return apart and min(az1, bz1) > max(az0, bz0)

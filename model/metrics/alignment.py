@@ -20,7 +20,7 @@ from typing import Iterable, Sequence
 
 from model.core import ArticulatedObject, JointType
 
-from model.data.expected_structure import ARRANGEMENT_KEYS
+from model.data.expected_structure import ARRANGEMENT_KEYS, RELATION_KEYS
 from model.data.prompt_parse import SPATIAL_KINDS, ExpectedStructure, parse_prompt
 
 SPATIAL_KIND_NAMES = ("hinge", "opening", "arrangement", "position", "size")
@@ -81,6 +81,9 @@ def _fact_ok(key: str, want, label: str, got: dict) -> bool:
         from model.data.describe import is_above
         return all(bool(is_above(got, label, o) if key == "above" else is_above(got, o, label))
                    for o in want)
+    if key == "beside":
+        from model.data.spatial import is_beside
+        return all(bool(is_beside(got, label, o)) for o in want)
     g = set(have.get(key) or [])
     w = set(want)
     if key == "hinge" and "side" in w:       # "side-hinged": on the left or on the right
@@ -112,7 +115,7 @@ def check_spatial(expected: ExpectedStructure, got: GeneratedStructure) -> tuple
             kinds[kind] = kinds.get(kind, True) and ok
             if not ok:
                 have = (got.spatial.get(label) or {}).get(key, "missing") \
-                    if key not in ("above", "below") else "not so"
+                    if key not in RELATION_KEYS else "not so"
                 fails.append(f"{label}.{key}: {have} != {want}")
     return kinds, fails
 

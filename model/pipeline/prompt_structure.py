@@ -18,6 +18,8 @@ import logging
 from collections import Counter
 from typing import Iterable, Optional
 
+from model.data.expected_structure import RELATION_KEYS
+
 log = logging.getLogger(__name__)
 
 # A person's word for a part that a category calls otherwise: a safe's "knob" is its dial, an
@@ -162,7 +164,7 @@ def spatial_for(spatial: Optional[dict], category: str) -> Optional[dict]:
     out: dict = {}
     for lab, facts in spatial.items():
         mine = dict(facts)
-        for key in ("above", "below"):
+        for key in RELATION_KEYS:
             if key in mine:
                 mine[key] = sorted({_own_label(category, o, have) for o in mine[key]})
         out.setdefault(_own_label(category, lab, have), {}).update(mine)

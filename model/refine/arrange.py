@@ -272,7 +272,7 @@ def _stated_bands(obj: ArticulatedObject, label: str, spatial: dict) -> list[tup
     face), "a door on the left" (H: low = the viewer's left, of the others on that face);
     ``share``: the groups also share the other extent (not for a corner, "at the top left")."""
     group, facts = _front_group(obj, label, every=False), spatial[label]
-    placed = any(facts.get(k) for k in ("above", "below", "vpos", "hpos"))
+    placed = any(facts.get(k) for k in ("above", "below", "beside", "vpos", "hpos"))
     if group is None and label in BANDED and placed:
         group = _turned_to_front(obj, label)
     if group is None:
@@ -283,6 +283,14 @@ def _stated_bands(obj: ArticulatedObject, label: str, spatial: dict) -> list[tup
             og = _front_group(obj, other, every=False)
             if og is not None and _same_face(obj, group, og):
                 out.append((og, group, V, True) if key == "above" else (group, og, V, True))
+    for other in facts.get("beside") or []:
+        # side by side, the group on the side the network put it (its centre's side of the
+        # other group's centre)
+        og = _front_group(obj, other, every=False)
+        if og is not None and _same_face(obj, group, og):
+            mine = np.mean([obj.parts[i].bbox_center[H] for i in group])
+            theirs = np.mean([obj.parts[i].bbox_center[H] for i in og])
+            out.append((group, og, H, True) if mine < theirs else (og, group, H, True))
     face = face_of(obj, group[0])
     rest = [c for c in obj.children(obj.parts[group[0]].parent)
             if c not in group and obj.parts[c].label in BANDED and face_of(obj, c) == face]
