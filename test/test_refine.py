@@ -2121,3 +2121,43 @@ def test_the_handles_on_a_bodys_doors_are_made_one_size():
     pair = _four_doors(handles)
     pair.parts.append(_part("handle_4", "handle", 4, knob, (0.29, -0.05, 0.68)))  # 8 cm above
     assert match_handles(pair) == 0                 # as bars the two on door 3 would overlap
+
+
+def _top_loader(stray_centre, stray_axis, door=False):
+    """A top loader (lid on the body's top) with a dial on the back face, where the console
+    is, and a second dial decoded at ``stray_centre`` turning about ``stray_axis``."""
+    parts = [_part("body_0", "body", -1, (0.54, 0.55, 0.82), (0, 0, 0.41)),
+             _part("lid_0", "lid", 0, (0.34, 0.46, 0.02), (0.08, 0, 0.83),
+                   Joint(JointType.REVOLUTE, (-0.09, 0, 0.82), (0, -1, 0), r_range=(0, 1.4))),
+             _part("dial_0", "dial", 0, (0.04, 0.063, 0.063), (-0.29, -0.15, 0.77),
+                   Joint(JointType.CONTINUOUS, (-0.29, -0.15, 0.77), (1, 0, 0))),
+             _part("dial_1", "dial", 0, (0.063, 0.04, 0.063) if stray_axis[1] else
+                   (0.04, 0.063, 0.063), stray_centre,
+                   Joint(JointType.CONTINUOUS, stray_centre, stray_axis))]
+    if door:
+        parts.append(_part("door_0", "door", 0, (0.03, 0.4, 0.4), (0.285, 0, 0.4),
+                           Joint(JointType.REVOLUTE, (0.3, -0.2, 0.4), (0, 0, -1),
+                                 r_range=(0, 1.6))))
+    return ArticulatedObject(category="WashingMachine", name="top", parts=parts)
+
+
+def test_a_top_loader_s_stray_dial_joins_the_console_row():
+    """Every top loader of the bench audit had its second dial off the console: on the
+    body's right side face turning about its width, or on its front under the lid. It goes
+    to the back face (the console's side before meshing) at the other controls' height,
+    facing backwards, and the row spreads evenly over the width, left to right in its
+    order (the side dial at the right end). A front loader, or a dial the prompt places,
+    stays."""
+    from model.refine.layout import face_of
+    for centre, axis in (((0.1, 0.29, 0.66), (0, -1, 0)), ((0.29, 0.0, 0.52), (1, 0, 0))):
+        obj = _top_loader(centre, axis)
+        assert refine_layout(obj)["controls_to_console"] == 1
+        d0, d1 = obj.parts[2], obj.parts[3]
+        assert face_of(obj, 3) == face_of(obj, 2) == (0, -1.0)
+        assert d1.bbox_center[2] == pytest.approx(d0.bbox_center[2])
+        assert d1.bbox_size == pytest.approx((0.04, 0.063, 0.063))
+        assert (d0.bbox_center[1], d1.bbox_center[1]) == pytest.approx((-0.55 / 6, 0.55 / 6))
+    front = _top_loader((0.29, 0.0, 0.52), (1, 0, 0), door=True)
+    assert refine_layout(front)["controls_to_console"] == 0
+    placed = _top_loader((0.1, 0.29, 0.66), (0, -1, 0))
+    assert refine_layout(placed, stated={"dial": {"hpos": ["right"]}})["controls_to_console"] == 0
