@@ -1092,6 +1092,29 @@ def test_a_top_loaders_controls_sit_on_its_console_front():
     mans = {0: body, 1: meshops.box((0.03, 0.05, 0.05), (-0.275, -0.2, 0.93)),
             2: meshops.box((0.006, 0.02, 0.01), (-0.26, 0.1, 0.93))}
     assert seat_console_controls(front, mans) == []
+    # no console in the body's mesh (2 of 18 bench top loaders), the controls decoded under
+    # the lid's level: a console is built along the back of the top, clear of the open lid,
+    # into the mesh and the collision, and the controls go onto its front at its middle
+    import trimesh
+    from model.refine.meshes import CONSOLE
+    flat = washer()
+    for p in flat.parts[1:3]:
+        p.bbox_center[2] = p.joint.origin[2] = 0.85
+    flat.parts[0].collision = [trimesh.primitives.Box(extents=(0.52, 0.6, 0.88),
+                                                      transform=np.eye(4))]
+    mans = {0: meshops.box((0.52, 0.6, 0.88), (0, 0, 0.44)),
+            1: meshops.box((0.03, 0.05, 0.05), (-0.275, -0.2, 0.85)),
+            2: meshops.box((0.006, 0.02, 0.01), (-0.26, 0.1, 0.85))}
+    assert seat_console_controls(flat, mans) == ["dial_0", "button_0"]
+    blo, bhi = np.asarray(mans[0].bounding_box()).reshape(2, 3)
+    assert bhi[2] == pytest.approx(0.88 + CONSOLE[0])             # a console on the top
+    dial, button, lid = flat.parts[1], flat.parts[2], flat.parts[3]
+    console_front = dial.bbox_center[0] - dial.bbox_size[0] / 2
+    assert -0.26 + CONSOLE[0] * 0.6 <= console_front <= -0.26 + CONSOLE[1] + 1e-9
+    assert console_front + dial.bbox_size[0] <= lid.joint.origin[0] - lid.bbox_size[2]
+    assert button.bbox_center[0] == pytest.approx(console_front)
+    assert dial.bbox_center[2] == pytest.approx(0.88 + CONSOLE[0] / 2)
+    assert len(flat.parts[0].collision) == 2
 
 
 def test_knobs_over_an_open_front_get_a_panel_behind_them():

@@ -414,11 +414,13 @@ def seat_console_controls(obj: ArticulatedObject, mans: dict) -> list[str]:
     button of the root on its back face above the lid's hinge moves forward to where a ray
     from behind the body through its centre leaves the body's mesh, if that is within
     ``CONSOLE_REACH`` of the depth and behind the lid: a dial with its back on that face, a
-    button straddling it, both facing the front (a button pressing backwards). Runs before
-    carving (the buttons' pockets are cut into the console). Returns the parts moved."""
+    button straddling it, both facing the front (a button pressing backwards). Where the
+    mesh has no console for any of them, one is built (:func:`_add_console`) and they go
+    onto its front at its middle height. Runs before carving (the buttons' pockets are cut
+    into the console). Returns the parts moved."""
     import trimesh
 
-    from .layout import _lohi, _move_subtree, face_of
+    from .layout import _lohi, face_of
     lids = [i for i, p in enumerate(obj.parts) if p.label == "lid" and p.parent == 0
             and face_of(obj, i) == (2, 1.0)]
     if obj.category != "WashingMachine" or not lids or 0 not in mans:
@@ -427,10 +429,13 @@ def seat_console_controls(obj: ArticulatedObject, mans: dict) -> list[str]:
     blo, bhi = np.asarray(mans[0].bounding_box()).reshape(2, 3)
     depth = bhi[0] - blo[0]
     lid_lo, _ = _lohi(obj.parts[lids[0]])
-    moved = []
+    moved, missed = [], []
     for i, p in enumerate(obj.parts):
         if p.parent != 0 or p.label not in ("dial", "button") or i not in mans \
-                or face_of(obj, i) != (0, -1.0) or p.bbox_center[2] < lid_lo[2]:
+                or face_of(obj, i) != (0, -1.0):
+            continue
+        if p.bbox_center[2] < lid_lo[2]:       # under the lid: no console there
+            missed.append(i)
             continue
         lo, hi = _lohi(p)
         start = [blo[0] - 0.01, p.bbox_center[1], p.bbox_center[2]]
@@ -440,14 +445,66 @@ def seat_console_controls(obj: ArticulatedObject, mans: dict) -> list[str]:
         front = next((float(x) for x in xs[1:2]), None)     # where the ray leaves the mesh
         if front is None or not (blo[0] + CONSOLE_REACH[0] * depth <= front
                                  <= min(blo[0] + CONSOLE_REACH[1] * depth, lid_lo[0])):
+            missed.append(i)
             continue
-        target = front - (hi[0] - lo[0]) / 2 if p.label == "button" else front
-        move = np.array([target - lo[0], 0.0, 0.0])
-        mans[i] = mans[i].translate(tuple(move))
-        _move_subtree(obj, i, move)
-        p.joint.axis = np.array([-1.0, 0.0, 0.0] if p.label == "button" else [1.0, 0.0, 0.0])
+        _to_console(obj, mans, i, front)
         moved.append(p.name)
+    if missed and not moved:          # no console in the body's mesh: one is built
+        front = _add_console(obj, mans, missed, lids[0])
+        for i in missed if front is not None else ():
+            _to_console(obj, mans, i, front[0], front[1])
+            moved.append(obj.parts[i].name)
     return moved
+
+
+CONSOLE = (0.08, 0.14)   # m: the data's consoles' depth (and 8-15 cm height, top loaders)
+
+
+def _to_console(obj: ArticulatedObject, mans: dict, i: int, front: float,
+                z: Optional[float] = None) -> None:
+    """Control ``i`` onto a console front at x = ``front`` (at height ``z`` if given): a dial
+    with its back on it, a button straddling it, both facing the front."""
+    from .layout import _lohi, _move_subtree
+    p = obj.parts[i]
+    lo, hi = _lohi(p)
+    target = front - (hi[0] - lo[0]) / 2 if p.label == "button" else front
+    move = np.array([target - lo[0], 0.0, 0.0 if z is None else z - p.bbox_center[2]])
+    mans[i] = mans[i].translate(tuple(move))
+    _move_subtree(obj, i, move)
+    p.joint.axis = np.array([-1.0, 0.0, 0.0] if p.label == "button" else [1.0, 0.0, 0.0])
+
+
+def _add_console(obj: ArticulatedObject, mans: dict, controls: list[int],
+                 lid: int) -> Optional[tuple[float, float]]:
+    """A console block along the back of a top loader's top, as every top loader of the
+    data has (``CONSOLE`` deep, the body's width, tall enough for its controls), for
+    ``controls`` the body's mesh gives no console to sit on: 2 of 18 top loaders of the
+    bench audit had their dials facing the wall. It ends in front of the back far enough
+    that the controls on it stay clear of the lid standing open on its hinge. Added to the
+    body's mesh and, as a box, to its collision. -> (its front x, the height of its
+    middle), or None where there is no room for it."""
+    import trimesh
+
+    from .layout import _lohi
+    blo, bhi = np.asarray(mans[0].bounding_box(), dtype=np.float64).reshape(2, 3)
+    boxes = [_lohi(obj.parts[i]) for i in controls]
+    reach = max(hi[0] - lo[0] for lo, hi in boxes)
+    tall = max(hi[2] - lo[2] for lo, hi in boxes)
+    lid_p = obj.parts[lid]
+    clear = float(lid_p.joint.origin[0]) - float(lid_p.bbox_size[2]) - reach - 0.01
+    front = min(blo[0] + CONSOLE[1], clear)
+    if front - blo[0] < CONSOLE[0] * 0.6:
+        return None
+    h = min(max(CONSOLE[0], 1.6 * tall), 0.15)
+    lo = np.array([blo[0], blo[1], bhi[2] - 0.002])
+    hi = np.array([front, bhi[1], bhi[2] + h])
+    box = meshops.box(hi - lo, (lo + hi) / 2)
+    mans[0] = meshops.union_manifolds([mans[0], box])
+    body = obj.parts[0]
+    if body.collision is not None:
+        body.collision = list(body.collision) + [trimesh.primitives.Box(
+            extents=hi - lo, transform=trimesh.transformations.translation_matrix((lo + hi) / 2))]
+    return float(front), float(bhi[2] + h / 2)
 
 
 NECK_GAP = 0.003   # m: a bottle lid's hinge line this much further from its body's mesh than
