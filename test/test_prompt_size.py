@@ -396,6 +396,58 @@ def test_a_drawer_taller_than_the_data_s_drawers_is_shortened_from_below():
     assert cap_drawer_height(oven) == 0
 
 
+def _door_row(n: int, width: float, height: float) -> ArticulatedObject:
+    """A storage body whose front holds ``n`` doors side by side, each with a bar handle."""
+    parts = [Part(name="body_0", label="body", parent=-1, bbox_center=(0, 0, height / 2),
+                  bbox_size=(0.5, width, height), joint=Joint())]
+    w = (width - 0.04) / n
+    for k in range(n):
+        y = -width / 2 + 0.02 + w * (k + 0.5)
+        parts.append(Part(name=f"door_{k}", label="door", parent=0,
+                          bbox_center=(0.255, y, height / 2),
+                          bbox_size=(0.02, w - 0.004, height - 0.04),
+                          joint=Joint(JointType.REVOLUTE, (0.265, y - w / 2, height / 2),
+                                      (0, 0, -1), r_range=(0, 1.5))))
+        parts.append(Part(name=f"handle_{k}", label="handle", parent=len(parts) - 1,
+                          bbox_center=(0.275, y, height / 2), bbox_size=(0.02, 0.02, 0.2),
+                          joint=Joint()))
+    return ArticulatedObject(category="StorageFurniture", name="row", parts=parts)
+
+
+def test_a_row_of_strip_doors_widens_its_body_to_the_usual_door_shape():
+    """"a wardrobe with four doors side by side": doors 17 cm wide and 1.63 m tall on a
+    0.76 m body. The layout widens along y until each door is at most DOOR_ASPECT times as
+    tall as wide, the body no wider than MAX_WIDTH; handles keep their size, the height
+    stays. Doors of that shape already, or stacked, stay; "a four-door wardrobe" lays its
+    doors out in a row; a width the text gives is a width said."""
+    from model.data.prompt_size import width_said, with_usual_layout
+    from model.refine.size import DOOR_ASPECT, MAX_WIDTH, widen_door_row
+    obj = _door_row(4, 0.76, 1.67)
+    f = widen_door_row(obj)
+    assert f is not None and obj.parts[0].bbox_size[1] == pytest.approx(MAX_WIDTH)
+    assert obj.parts[0].bbox_size[2] == pytest.approx(1.67)
+    for d in (p for p in obj.parts if p.label == "door"):
+        assert d.bbox_size[2] <= 1.2 * DOOR_ASPECT * d.bbox_size[1]     # capped at MAX_WIDTH
+        assert d.bbox_size[1] > 0.3
+    assert all(p.bbox_size == pytest.approx((0.02, 0.02, 0.2)) for p in obj.parts
+               if p.label == "handle")
+    assert widen_door_row(obj) is None                       # widened: left alone
+    two = _door_row(2, 0.5, 1.8)                             # 0.23 x 1.76 m: widened to
+    assert widen_door_row(two) is not None                   # the aspect, under MAX_WIDTH
+    d = two.parts[1]
+    assert d.bbox_size[2] == pytest.approx(DOOR_ASPECT * d.bbox_size[1], rel=1e-6)
+    assert widen_door_row(_door_row(2, 0.9, 1.0)) is None    # doors 0.45 x 0.96 m: fine
+    stacked = _door_row(1, 0.76, 1.67)
+    assert widen_door_row(stacked) is None
+    spatial = with_usual_layout("a four-door wardrobe", "StorageFurniture", {})
+    assert spatial == {"door": {"layout": "row"}}
+    assert with_usual_layout("a wardrobe with two doors stacked", "StorageFurniture",
+                             {"door": {"layout": "column"}}) == {"door": {"layout": "column"}}
+    assert width_said("a 2 m wide wardrobe with four doors", "StorageFurniture", {"width": 2.0})
+    assert width_said("a wide wardrobe with four doors", "StorageFurniture", {})
+    assert not width_said("a tall wardrobe with four doors", "StorageFurniture", {})
+
+
 def test_a_stove_s_door_drops_down_unless_the_text_says_otherwise():
     """"a stove with an oven door and four knobs on the front" had a side-hinged wall-oven
     door with 4 of 4 seeds; generation holds a stove's, cooker's or range's one door hinged

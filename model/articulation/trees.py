@@ -73,6 +73,7 @@ class DecodedTree:
                                        # model.refine.size gives them to the layout)
     height_said: bool = False          # the prompt gives the body's height (a stated size, a
                                        # size word, an everyday name's usual height)
+    width_said: bool = False           # ... its width
 
     @property
     def num_nodes(self) -> int:

@@ -333,7 +333,10 @@ NAMED_LAYOUTS: dict[str, list[tuple[tuple[str, ...], str | None, dict]]] = {
                                               for c in ("knob", "button", "dial")},
                "button": {"hpos": ["right"], "layout": "column", "below": ["knob"]}})],
     "StorageFurniture": [(("filing cabinet", "file cabinet"), None,
-                          {"drawer": {"layout": "column"}})],
+                          {"drawer": {"layout": "column"}}),
+                         # a wardrobe's doors stand side by side ("a four-door wardrobe" had
+                         # four full-width doors stacked, 41 cm tall)
+                         (("wardrobe", "armoire"), None, {"door": {"layout": "row"}})],
 }
 
 
@@ -408,13 +411,23 @@ def height_said(text: str, category: str | None, stated: dict | None) -> bool:
     """Whether ``text`` gives the body's height: stated ("1.2 m tall", a length), said in size
     words ("a tall cabinet", "a small chest": ``read_size_words``), or an everyday name's
     usual height (``NAMED_SIZES``, ``NAMED_RANGES``, ``EVERYDAY_RANGES``)."""
-    if stated and ("height" in stated or "length" in stated):
+    return _said(text, category, stated, "height")
+
+
+def width_said(text: str, category: str | None, stated: dict | None) -> bool:
+    """Whether ``text`` gives the body's width, as :func:`height_said` its height ("60 cm
+    wide", "a wide cabinet", an everyday name's usual width)."""
+    return _said(text, category, stated, "width")
+
+
+def _said(text: str, category: str | None, stated: dict | None, dim: str) -> bool:
+    if stated and (dim in stated or "length" in stated):
         return True
-    if read_size_words(text).keys() & {"height", "length", "size"}:
+    if read_size_words(text).keys() & {dim, "length", "size"}:
         return True
     named = (NAMED_SIZES.get(category or "", []) + NAMED_RANGES.get(category or "", [])
              + EVERYDAY_RANGES.get(category or "", []))
-    return any("height" in dims for names, dims in named if _named(text, names))
+    return any(dim in dims for names, dims in named if _named(text, names))
 
 
 # A safe's keypad the text does not count ("a safe with a keypad", read as at least two

@@ -27,7 +27,7 @@ from model.core.runtime import keep_heap_mapped, torch_threads
 from model.pipeline.api import (ExportResult, GeneratedObject, GenerationConfig,
                                 GenerationError)
 from model.pipeline.part_pool import PartPool, default_workers
-from model.data.prompt_size import (height_said, with_usual_hinge, with_usual_keypad,
+from model.data.prompt_size import (height_said, width_said, with_usual_hinge, with_usual_keypad,
                                     with_usual_layout, with_usual_parts, with_usual_size)
 from model.pipeline.prompt_structure import spatial_for
 # checkpoint discovery and request checks, re-exported from their modules
@@ -244,6 +244,8 @@ class Generator:
             tree.size = {**said, **(given or {})} or None
             tree.height_said = bool(given and ("height" in given or "length" in given)) or (
                 stated is not None and height_said(prompt, tree.category, stated.size))
+            tree.width_said = bool(given and ("width" in given or "length" in given)) or (
+                stated is not None and width_said(prompt, tree.category, stated.size))
         return trees, prompt, modality, timings
 
     def _stated_structure(self, expected, cond, mask, seed: int):
@@ -295,12 +297,14 @@ class Generator:
         """The layout refinement steps of :meth:`layout`, in place."""
         from model.refine import (arrange_stated, free_edge_handles, match_handles,
                                   place_stated_sides, refine_layout, safe_keypads)
-        from model.refine.size import cap_drawer_height, lower_drawer_row
+        from model.refine.size import cap_drawer_height, lower_drawer_row, widen_door_row
         stated = tree.spatial if self.config.prompt_structure else None
         report["arranged"] = arrange_stated(obj, stated) + safe_keypads(obj, stated)
         report["layout"] = refine_layout(obj, stated=stated)
         report["layout"]["drawer_row_lowered"] = None if tree.height_said else \
             lower_drawer_row(obj)
+        report["layout"]["door_row_widened"] = None if tree.width_said else \
+            widen_door_row(obj)
         report["layout"]["drawers_shortened"] = cap_drawer_height(obj)
         if stated:
             report["arranged"] += place_stated_sides(obj, stated)
