@@ -224,6 +224,22 @@ def test_a_prompt_naming_any_part_keeps_its_own_structure(text):
     assert with_usual_parts(text, said) == said
 
 
+@pytest.mark.parametrize("text,counts,bounds", [
+    # "every drawer" bounds the drawers at one: the network made a one-drawer "chest"
+    ("a chest of drawers with round knobs on every drawer", {"drawer": 4}, {"knob": 2}),
+    ("a dresser with knobs", {"drawer": 4}, {"knob": 2}),
+    ("a wardrobe with handles", {"door": 2}, {"handle": 2})])
+def test_an_everyday_name_whose_parts_are_only_bounded_gets_its_usual_count(text, counts,
+                                                                             bounds):
+    said = parse_prompt(text)
+    assert not said.counts
+    usual = with_usual_parts(text, said)
+    assert usual.counts == counts and usual.min_counts == bounds
+    for other in ("a nightstand with drawers", "a cabinet with knobs"):   # over the usual
+        e = parse_prompt(other)                                            # count; no name
+        assert with_usual_parts(other, e) == e
+
+
 def test_size_round_trips_through_the_annotation_line():
     e = parse_prompt("a cabinet 60 cm wide and 80 cm tall with two drawers")
     line = e.to_line()

@@ -505,13 +505,26 @@ def with_usual_parts(text: str, expected):
     (``USUAL_PARTS``) as its counts when the text names a category and no part at all (no
     count, bound, zero, joint or spatial fact): what generation holds ("a dresser" gets
     four drawers, "a cabinet" two doors; the network lays them out, and the seed varies the
-    layout). Not a stated fact: the alignment metric checks the prompt's own structure."""
+    layout). An everyday name whose parts the text counts nowhere, only bounds ("a dresser
+    with knobs", "a chest of drawers with knobs on every drawer"), gets its usual parts
+    where they meet the bounds. Not a stated fact: the alignment metric checks the
+    prompt's own structure."""
     from dataclasses import replace
 
-    if not expected.category or expected.counts or expected.min_counts \
-            or expected.joint_types or expected.spatial:
+    if not expected.category or expected.counts:
         return expected
+    bare = not (expected.min_counts or expected.joint_types or expected.spatial)
     for names, parts in USUAL_PARTS.get(expected.category, []):
-        if not names or _named(text, names):
+        if bare and (not names or _named(text, names)):
             return replace(expected, counts=dict(parts))
+        # a named object whose parts the text only bounds ("a chest of drawers with round
+        # knobs on every drawer": at least one drawer; the network made one): its usual
+        # count where that meets the bound
+        if names and _named(text, names):
+            held = {lab: n for lab, n in parts.items()
+                    if expected.min_counts.get(lab, 0) <= n}
+            if not held:
+                return expected
+            return replace(expected, counts=held, min_counts={
+                lab: n for lab, n in expected.min_counts.items() if lab not in held})
     return expected
