@@ -245,12 +245,10 @@ def _sentences(text: str) -> list[str]:
     return [s.strip() for s in re.split(r"[.!?\n]+", text) if s.strip()]
 
 
-_NUMBER_COMPOUND = re.compile(
-    r"\b(\d+|" + "|".join(sorted(vocab.NUMBER_WORDS[1:13], key=len, reverse=True))
-    + r")-([a-z]+)\b")
-
-
 _NUMBER = r"(\d+|" + "|".join(sorted(vocab.NUMBER_WORDS[1:13], key=len, reverse=True)) + r")"
+_NUMBER_COMPOUND = re.compile(rf"\b{_NUMBER}-([a-z]+)\b")
+
+
 _KEYS = re.compile(
     rf"\b{_NUMBER}[- ]keys? (?:key ?pad|number ?pad|numpad)\b"
     rf"|\b(?:key ?pad|number ?pad|numpad) (?:of|with) {_NUMBER} keys\b")

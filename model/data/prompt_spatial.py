@@ -314,13 +314,13 @@ _SPATIAL_PATTERNS: list[tuple[str, str, str]] = [
 _COMPILED = [(k, re.compile(r), m) for k, r, m in _SPATIAL_PATTERNS]
 _ABOVE = {"above", "over", "on top of"}
 _BESIDE = {"beside", "next to", "alongside"}
+_PRE_SIDE = {"left": ("hpos", "left"), "right": ("hpos", "right"), "left-hand": ("hpos", "left"),
+             "right-hand": ("hpos", "right"), "top": ("vpos", "top"), "bottom": ("vpos", "bottom"),
+             "upper": ("vpos", "top"), "lower": ("vpos", "bottom")}
 
 
 def _relation(word: str) -> str:
     return "above" if word in _ABOVE else "beside" if word in _BESIDE else "below"
-_PRE_SIDE = {"left": ("hpos", "left"), "right": ("hpos", "right"), "left-hand": ("hpos", "left"),
-             "right-hand": ("hpos", "right"), "top": ("vpos", "top"), "bottom": ("vpos", "bottom"),
-             "upper": ("vpos", "top"), "lower": ("vpos", "bottom")}
 
 
 def _listed_before(toks: list[_Tok], at: int) -> list[_Tok]:

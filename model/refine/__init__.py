@@ -173,5 +173,5 @@ def _back_within_budget(mans: dict, budget: int, tol: float, floaters: bool) -> 
 
 
 __all__ = ["RefineConfig", "simplify_meshes", "LayoutConfig", "arrange_stated",
-           "free_edge_handles", "match_handles", "place_stated_sides", "refine_layout", "refine_meshes", "face_of",
-           "safe_keypads"]
+           "free_edge_handles", "match_handles", "place_stated_sides", "refine_layout",
+           "refine_meshes", "face_of", "safe_keypads"]

@@ -14,6 +14,7 @@ import numpy as np
 
 from model.core import ArticulatedObject, JointType
 
+from .arrange import _place
 from .layout import _lohi, face_of
 
 SAME = 0.005     # m: handle boxes within this on every side are one size already
@@ -100,7 +101,6 @@ def match_handles(obj: ArticulatedObject, stated: Optional[dict] = None) -> int:
             h = obj.parts[i]
             if np.allclose(h.bbox_size, r.bbox_size) and np.allclose(h.bbox_center, centre):
                 continue
-            h.joint.origin = np.asarray(h.joint.origin, dtype=np.float64) + centre - h.bbox_center
-            h.bbox_center, h.bbox_size = centre, r.bbox_size.copy()
+            _place(obj, i, centre, r.bbox_size.copy())
             changed += 1
     return changed

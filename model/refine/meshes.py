@@ -592,9 +592,7 @@ NARROW = 0.8   # a cap narrower than this share of the mouth under it does not c
 def _slab_of(man, lo, hi, n: int, a: float, b: float):
     """(lo, hi) of Manifold ``man`` between ``a`` and ``b`` along axis ``n`` across the box
     ``lo``..``hi`` (grown by 1 m), or None where nothing of it is there."""
-    slo, shi = lo - 1.0, hi + 1.0
-    slo[n], shi[n] = a, b
-    part = man ^ meshops.box(shi - slo, (slo + shi) / 2)
+    part = man ^ _slab(lo - 1.0, hi + 1.0, n, a, b)
     if part.volume() < 1e-12:
         return None
     return np.asarray(part.bounding_box(), dtype=np.float64).reshape(2, 3)
