@@ -208,7 +208,10 @@ def test_a_safes_uncounted_keypad_gets_the_usual_three_by_three_keys():
 @pytest.mark.parametrize("text,parts", [
     ("a cabinet", {"door": 2}), ("A dresser.", {"drawer": 4}), ("a nightstand", {"drawer": 1}),
     ("a wardrobe", {"door": 2}), ("an oven", {"door": 1}), ("a washer", {"door": 1}),
-    ("a washing machine", {"door": 1}), ("a jar", {"cap": 1}), ("a thumb drive", {"cap": 1})])
+    ("a washing machine", {"door": 1}), ("a jar", {"cap": 1}), ("a thumb drive", {"cap": 1}),
+    # a chest that opens at the top has a lid; a chest alone is a chest of drawers
+    ("a toy chest", {"lid": 1}), ("a wooden trunk", {"lid": 1}), ("a chest", {"drawer": 4}),
+    ("a storage ottoman", {"lid": 1}), ("a jewelry box", {"lid": 1})])
 def test_a_bare_name_gets_its_usual_parts(text, parts):
     said = parse_prompt(text)
     assert not said.counts and not said.min_counts                 # a category, no part
@@ -480,3 +483,25 @@ def test_a_stove_s_door_drops_down_unless_the_text_says_otherwise():
                  "a wall oven with a door", "a cabinet with a door"):
         parsed = parse_prompt(text)
         assert with_usual_hinge(text, parsed) == parsed
+
+
+def test_a_chest_with_a_lid_gets_its_names_size_with_the_decoded_proportions():
+    """A chest is decoded as a cabinet (model.refine.orient): the cabinet's depth, width and
+    height are the chest's height, width and depth. Its overall size is the name's usual
+    one (a jewelry box had come out 43 cm tall, a cabinet's size), its proportions the
+    decoded ones; stated sides are kept, size words scale within the name's range."""
+    from model.data.prompt_size import LIDDED_RANGES, with_lidded_size
+    cab = np.array([0.43, 0.85, 0.52])            # decoded cabinet: depth, width, height
+    toy = with_lidded_size("a toy chest", {}, cab)
+    assert set(toy) == {"depth", "width", "height"}
+    assert toy["height"] / toy["depth"] == pytest.approx(0.43 / 0.52, rel=1e-3)
+    mean = np.exp(np.mean(np.log([toy[d] for d in toy])))
+    usual = np.exp(np.mean(np.log([LIDDED_RANGES[d][2] for d in toy])))
+    assert mean == pytest.approx(usual, rel=1e-3)
+    jewel = with_lidded_size("a jewelry box with a lid", {}, cab)
+    assert max(jewel.values()) < 0.4 and jewel["height"] < 0.25
+    big = with_lidded_size("a large trunk", {}, cab)
+    assert all(big[d] > toy[d] for d in toy)
+    said = with_lidded_size("a 1 m wide chest with a lid, 50 cm tall", {"width": 1.0, "height": 0.5}, cab)
+    assert said["width"] == 1.0 and said["height"] == 0.5
+    assert LIDDED_RANGES["depth"][0] <= said["depth"] <= LIDDED_RANGES["depth"][1]

@@ -72,6 +72,14 @@ NAMED_RANGES: dict[str, list[tuple[tuple[str, ...], dict[str, tuple[float, float
 _DISHWASHER = {"width": (0.45, 0.61, 0.6), "height": (0.8, 0.9, 0.85),
                "depth": (0.55, 0.65, 0.6)}
 
+# chests that open at the top (a lid: model.refine.orient) and their usual body, for a chest
+# with a lid that no other name sizes ("a chest with a lid hinged at the back")
+LIDDED_NAMES = ("toy chest", "toy box", "toy trunk", "blanket chest", "blanket box",
+                "hope chest", "storage chest", "storage trunk", "trunk", "storage box",
+                "storage bench", "storage ottoman", "ottoman")
+LIDDED_RANGES = {"width": (0.5, 1.3, 0.85), "height": (0.35, 0.7, 0.5),
+                 "depth": (0.3, 0.65, 0.45)}
+
 # body ranges (m) of everyday names the data's descriptions never use, from the usual sizes
 # of such furniture and appliances, in the form and use of NAMED_RANGES (lowest, highest,
 # usual). The network reads a name it never saw as no name at all: "a TV stand" decoded
@@ -81,6 +89,7 @@ EVERYDAY_RANGES: dict[str, list[tuple[tuple[str, ...], dict[str, tuple]]]] = {
     "StorageFurniture": [
         (("jewelry box", "jewellery box", "jewelry chest", "jewellery chest", "trinket box"),
          {"width": (0.15, 0.5, 0.3), "height": (0.08, 0.45, 0.2), "depth": (0.1, 0.35, 0.2)}),
+        (LIDDED_NAMES, LIDDED_RANGES),
         (("toolbox", "tool box"),
          {"width": (0.3, 0.7, 0.5), "height": (0.15, 0.5, 0.3), "depth": (0.15, 0.4, 0.25)}),
         (("tool chest",),
@@ -407,6 +416,41 @@ def with_usual_size(text: str, category: str | None, stated: dict | None,
     return out
 
 
+# a chest's dimension -> the dimension of the cabinet it is decoded as (model.refine.orient)
+FRONT_UP_DIMS = {"height": "depth", "depth": "height", "width": "width"}
+
+
+def with_lidded_size(text: str, stated: dict | None, decoded) -> dict:
+    """The body size (m: depth, width, height of the chest) of a chest with a lid, decoded as
+    a cabinet with flip-up doors (model.refine.orient) and turned front up: ``stated`` with
+    open dimension scaled so that together they have the usual size of the name in ``text``
+    (its NAMED_RANGES or EVERYDAY_RANGES entry: "a jewelry box"; ``LIDDED_RANGES`` for any
+    other chest; the geometric mean of the range's usual sides), each within its range: the
+    decoded cabinet's proportions (``decoded``: the cabinet's depth, width, height) and the
+    seed's variation are kept, its overall size is not (the data's cabinets are 0.4-1.9 m
+    tall: a jewelry box had come out 43 cm tall). Size words ("a small trunk", "a wide
+    chest") take NAMED_SIZE_STEP, within the range."""
+    out = dict(stated or {})
+    if "length" in out:
+        return out
+    ranges = next((r for names, r in NAMED_RANGES["StorageFurniture"]
+                   + EVERYDAY_RANGES["StorageFurniture"] if _named(text, names)
+                   and set(r) == set(AXIS)), LIDDED_RANGES)
+    have = {dim: float(decoded[AXIS[FRONT_UP_DIMS[dim]]]) for dim in AXIS}
+    open_dims = [dim for dim in AXIS if dim not in out]
+    if not open_dims:
+        return out
+    scale = float(np.exp(np.mean([np.log(ranges[d][2] / max(have[d], 1e-6))
+                                  for d in open_dims])))
+    words = read_size_words(text)
+    for dim in open_dims:
+        lo, hi, _ = ranges[dim]
+        sign = words.get(dim, 0) + (words.get("size", 0) if not stated else 0)
+        out[dim] = round(float(np.clip(have[dim] * scale * NAMED_SIZE_STEP ** np.sign(sign),
+                                       lo, hi)), 4)
+    return out
+
+
 def height_said(text: str, category: str | None, stated: dict | None) -> bool:
     """Whether ``text`` gives the body's height: stated ("1.2 m tall", a length), said in size
     words ("a tall cabinet", "a small chest": ``read_size_words``), or an everyday name's
@@ -485,7 +529,9 @@ def with_usual_hinge(text: str, expected):
 # empty carcass. First match wins; the category's default last. Counts are the data's
 # typical ones for that kind of object (model/data/synth).
 USUAL_PARTS = {
-    "StorageFurniture": [(("dresser", "chest of drawers", "chest", "tallboy", "filing cabinet",
+    "StorageFurniture": [(LIDDED_NAMES + ("jewelry box", "jewellery box", "trinket box"),
+                          {"lid": 1}),
+                         (("dresser", "chest of drawers", "chest", "tallboy", "filing cabinet",
                            "drawer unit"), {"drawer": 4}),
                          (("nightstand", "night stand", "bedside table", "bedside cabinet"),
                           {"drawer": 1}),

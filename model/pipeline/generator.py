@@ -27,9 +27,10 @@ from model.core.runtime import keep_heap_mapped, torch_threads
 from model.pipeline.api import (ExportResult, GeneratedObject, GenerationConfig,
                                 GenerationError)
 from model.pipeline.part_pool import PartPool, default_workers
-from model.data.prompt_size import (height_said, width_said, with_usual_hinge, with_usual_keypad,
+from model.data.prompt_size import (FRONT_UP_DIMS, height_said, width_said, with_lidded_size,
+                                    with_usual_hinge, with_usual_keypad,
                                     with_usual_layout, with_usual_parts, with_usual_size)
-from model.pipeline.prompt_structure import spatial_for
+from model.pipeline.prompt_structure import front_door_text, lids_as_front_doors, spatial_for
 # checkpoint discovery and request checks, re-exported from their modules
 from model.pipeline.checkpoints import (STAGES, WEIGHTS_DIR, check_codebooks,  # noqa: F401
                                         file_digest, find_checkpoints)
@@ -152,8 +153,9 @@ class Generator:
                 obj.metadata["structure"] = spec.to_dict()
             elif tree.structure is not None:      # the parts the prompt states, held
                 obj.metadata["prompt_structure"] = tree.structure
-            if tree.size:
-                obj.metadata["size"] = dict(tree.size)    # the body's, m (asked or stated)
+            if tree.size:          # the body's, m (asked or stated)
+                obj.metadata["size"] = _front_up_dims(tree.size) if tree.front_up else \
+                    dict(tree.size)
             results.append(GeneratedObject(obj=obj, prompt=prompt, seed=seed + i, timings=tim))
         return results
 
@@ -205,11 +207,15 @@ class Generator:
                                                   max_children=cfg.max_children)
             except ValueError as e:
                 raise GenerationError(str(e)) from None
-        stated = None
+        stated, lidded = None, False
         if modality == "text" and keep is None and cfg.prompt_structure:
             from model.data.prompt_parse import parse_prompt
             stated = with_usual_hinge(prompt, with_usual_parts(
                 prompt, with_usual_keypad(prompt, parse_prompt(prompt))))
+            stated, lidded = lids_as_front_doors(stated)
+            if lidded:       # the network reads the cabinet the chest is decoded as
+                with torch_threads(cfg.token_threads):
+                    cond, mask = self.articulation.encode_text([front_door_text(stated)])
             if structure is None:
                 spec, splan = self._stated_structure(stated, cond, mask, seed)
 
@@ -236,12 +242,17 @@ class Generator:
         held = None if spec is None else parse_structure(spec).to_dict()
         for tree in trees:
             tree.structure = held
+            tree.front_up = lidded and tree.category == "StorageFurniture"
             tree.spatial = with_usual_layout(prompt, tree.category, spatial_for(
                 stated.spatial, tree.category)) if stated is not None else None
-            said = with_usual_size(prompt, tree.category, stated.size,
-                                   decoded=tree.tokens[0, :3],
-                                   spatial=stated.spatial) if stated else {}
-            tree.size = {**said, **(given or {})} or None
+            if tree.front_up:      # the chest's size, on the cabinet it is decoded as
+                said = with_lidded_size(prompt, stated.size, tree.tokens[0, :3])
+                tree.size = _front_up_dims({**said, **(given or {})})
+            else:
+                said = with_usual_size(prompt, tree.category, stated.size,
+                                       decoded=tree.tokens[0, :3],
+                                       spatial=stated.spatial) if stated else {}
+                tree.size = {**said, **(given or {})} or None
             tree.height_said = bool(given and ("height" in given or "length" in given)) or (
                 stated is not None and height_said(prompt, tree.category, stated.size))
             tree.width_said = bool(given and ("width" in given or "length" in given)) or (
@@ -389,6 +400,9 @@ class Generator:
             log.warning("parts %s had no surface; exported as their boxes", fallbacks)
         obj.metadata["box_fallback_parts"] = fallbacks
         kept = frozenset(k for k in range(tree.num_nodes) if len(tree.kept) and tree.kept[k])
+        if tree.front_up:        # a chest with a lid: the cabinet it was decoded as, turned
+            from model.refine.orient import turn_front_up
+            obj.metadata["turned_front_up"] = turn_front_up(obj, prepared)
         if cfg.refine:
             from model.refine import RefineConfig, refine_meshes
             t = time.perf_counter()
@@ -403,6 +417,9 @@ class Generator:
             obj.metadata["simplify"] = simplify_meshes(obj, cfg.face_budget, frozen=kept,
                                                        prepared=prepared)
             timings["simplify"] = time.perf_counter() - t
+        if tree.front_up:
+            from model.refine.orient import doors_to_lids
+            doors_to_lids(obj)
         _unique_names(obj)
         try:
             obj.validate()
@@ -445,6 +462,12 @@ class Generator:
         exported.preview_path = path
         result.timings["preview"] = time.perf_counter() - t
         return path
+
+
+def _front_up_dims(size: dict) -> dict:
+    """Body dimensions of a chest (front up) as those of the cabinet it is decoded as, and
+    back (FRONT_UP_DIMS swaps height and depth)."""
+    return {FRONT_UP_DIMS.get(k, k): v for k, v in size.items()}
 
 
 def _text_plan(cfg: GenerationConfig):

@@ -42,6 +42,13 @@ class PreparedMesh:
         return PreparedMesh((self.whole[0] + d, self.whole[1]),
                             tuple(None if s is None else (s[0] + d, s[1]) for s in self.steps))
 
+    def turned(self, rotation) -> "PreparedMesh":
+        """The same part rotated about the origin by ``rotation`` (3x3, a proper rotation:
+        the faces keep their winding)."""
+        R = np.asarray(rotation, dtype=np.float64).T
+        return PreparedMesh((self.whole[0] @ R, self.whole[1]),
+                            tuple(None if s is None else (s[0] @ R, s[1]) for s in self.steps))
+
     def manifold(self, level: int = -1):
         """The part as a Manifold after simplification step ``level`` (-1: none)."""
         return meshops.unpack(self._at(level))
