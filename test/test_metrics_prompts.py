@@ -68,6 +68,11 @@ CASES = [
      {"drawer": 2, "door": 2}, {}, {}),
     ("a cabinet with a knob on each of its three drawers", "StorageFurniture",
      {"knob": 3, "drawer": 3}, {}, {}),
+    # a handle of a style is one part: "knob handles" had been one knob and the handles
+    ("a dresser with four drawers with knob handles", "StorageFurniture", {"drawer": 4},
+     {"handle": 2}, {}),
+    ("a cabinet with two doors, each with a cup pull", "StorageFurniture",
+     {"door": 2, "handle": 2}, {}, {}),
 ]
 
 

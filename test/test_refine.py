@@ -2146,6 +2146,45 @@ def test_the_handles_on_a_bodys_doors_are_made_one_size():
     assert match_handles(pair) == 0                 # as bars the two on door 3 would overlap
 
 
+def test_handles_a_text_calls_knobs_become_round_knob_pulls():
+    """"a nightstand with two drawers and a small knob on each" had 15 cm bars with every
+    seed. Each handle on a front gets a knob's box (3.2 cm across, 2.8 cm off the front, at
+    most half the front's smaller side), centred where it was; after meshing it is a solid
+    of revolution about the front's normal."""
+    import trimesh
+    from model.core import meshops
+    from model.refine import knob_handles
+    from model.refine.revolve import revolve_knobs
+    bar = (0.03, 0.015, 0.2)
+    obj = _four_doors([(bar, (0.285, y, z)) for y, z in
+                       ((0.05, 1.2), (-0.05, 1.2), (0.05, 0.7), (-0.05, 0.7))])
+    assert knob_handles(obj) == ["handle_0", "handle_1", "handle_2", "handle_3"]
+    assert obj.metadata["knob_handles"] == ["handle_0", "handle_1", "handle_2", "handle_3"]
+    for h in obj.parts[5:]:
+        np.testing.assert_allclose(h.bbox_size, (0.028, 0.032, 0.032))
+        door = obj.parts[h.parent]
+        assert h.bbox_center[0] - 0.014 == pytest.approx(door.bbox_center[0] + 0.01)  # on it
+    np.testing.assert_allclose(obj.parts[5].bbox_center[1:], (0.05, 1.2))
+    # a bar squeezed into the knob's box, turned into a round knob about x
+    h = obj.parts[5]
+    block = trimesh.creation.box(extents=h.bbox_size)
+    block.apply_translation(h.bbox_center)
+    mans = {5: meshops.to_manifold(block)}
+    assert revolve_knobs(obj, mans) == ["handle_0"]
+    lo, hi = np.asarray(mans[5].bounding_box()).reshape(2, 3)
+    assert hi[1] - lo[1] == pytest.approx(hi[2] - lo[2], rel=0.02)
+    v = np.asarray(mans[5].to_mesh().vert_properties)[:, :3]
+    r = np.hypot(v[:, 1] - h.bbox_center[1], v[:, 2] - h.bbox_center[2])
+    assert r.max() < 0.02                          # not the block's corners (2.26 cm out)
+    rim = r[r > 0.9 * r.max()]
+    assert rim.min() > 0.97 * r.max()                   # a circle
+    # a small front keeps a knob within half its smaller side
+    tiny = _four_doors([((0.03, 0.015, 0.02), (0.285, 0.05, 1.2))])
+    tiny.parts[1].bbox_size = np.array([0.02, 0.05, 0.04])
+    knob_handles(tiny)
+    assert tiny.parts[5].bbox_size[1] == pytest.approx(0.02)
+
+
 def _top_loader(stray_centre, stray_axis, door=False):
     """A top loader (lid on the body's top) with a dial on the back face, where the console
     is, and a second dial decoded at ``stray_centre`` turning about ``stray_axis``."""

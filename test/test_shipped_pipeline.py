@@ -248,3 +248,21 @@ def test_a_hutch_has_two_rows_of_doors_and_a_thermos_a_bottles_size(gen):
             for ax, dim in enumerate(("depth", "width", "height")):
                 lo, *_, hi = SIZE_SPREAD[cat][dim]
                 assert lo - 1e-3 <= size[ax] <= hi + 1e-3, (text, seed, size)
+
+
+def test_knobs_on_a_nightstands_drawers_are_round_knob_pulls(gen):
+    """"a nightstand with two drawers and a small knob on each" had 15 cm bar handles with
+    every seed: now a round knob 3.2 cm across on each drawer."""
+    for res in gen.generate("a nightstand with two drawers and a small knob on each", seed=0,
+                            samples=2):
+        hs = [p for p in res.obj.parts if p.label == "handle"]
+        assert len(hs) == 2
+        for h in hs:
+            lo, hi = h.mesh.bounds
+            size = hi - lo
+            assert size[1] < 0.04 and size[2] < 0.04, size               # not a bar
+            assert size[1] == pytest.approx(size[2], rel=0.1)           # round
+            assert res.obj.parts[h.parent].label == "drawer"
+        assert res.obj.metadata["refine"]["meshes"]["revolved"] == [h.name for h in hs]
+    [plain] = gen.generate("a nightstand with two drawers", seed=0)
+    assert "knob_handles" not in plain.obj.metadata

@@ -74,6 +74,7 @@ class DecodedTree:
     height_said: bool = False          # the prompt gives the body's height (a stated size, a
                                        # size word, an everyday name's usual height)
     width_said: bool = False           # ... its width
+    knob_handles: bool = False         # the text calls a cabinet's handles knobs
     front_up: bool = False             # a chest with a lid: decoded as a cabinet with a
                                        # flip-up door, turned front up after meshing
                                        # (model.refine.orient)

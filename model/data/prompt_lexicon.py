@@ -44,7 +44,11 @@ EXTRA_CATEGORY = {
             "flashdrive", "usb flash stick", "pendrive", "pen-drive"),
 }
 EXTRA_PART = {
-    "handle": ("handlebar", "bar handle", "bar pull", "door handle", "drawer pull", "pull bar"),
+    "handle": ("handlebar", "bar handle", "bar pull", "door handle", "drawer pull", "pull bar",
+               # a handle of a style: one part ("four drawers with knob handles" had been
+               # read as one knob besides the handles, and made one handle)
+               "knob handle", "knob pull", "cup pull", "cup handle", "ring pull",
+               "square handle", "edge pull", "edge handle", "finger pull", "t-bar handle"),
     "knob": ("control knob", "temperature knob", "burner knob"),
     "button": ("switch", "start button", "power button"),
     "dial": ("program dial", "timer dial", "program selector", "selector"),

@@ -451,6 +451,15 @@ def with_lidded_size(text: str, stated: dict | None, decoded) -> dict:
     return out
 
 
+_KNOBS = re.compile(r"\bknobs?\b", re.I)
+
+
+def says_knobs(text: str) -> bool:
+    """Whether ``text`` calls parts knobs: on storage furniture, its handles are knob pulls
+    (model.refine.hardware.knob_handles)."""
+    return bool(_KNOBS.search(text))
+
+
 def height_said(text: str, category: str | None, stated: dict | None) -> bool:
     """Whether ``text`` gives the body's height: stated ("1.2 m tall", a length), said in size
     words ("a tall cabinet", "a small chest": ``read_size_words``), or an everyday name's

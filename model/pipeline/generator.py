@@ -27,7 +27,8 @@ from model.core.runtime import keep_heap_mapped, torch_threads
 from model.pipeline.api import (ExportResult, GeneratedObject, GenerationConfig,
                                 GenerationError)
 from model.pipeline.part_pool import PartPool, default_workers
-from model.data.prompt_size import (FRONT_UP_DIMS, height_said, width_said, with_lidded_size,
+from model.data.prompt_size import (FRONT_UP_DIMS, height_said, says_knobs, width_said,
+                                    with_lidded_size,
                                     with_usual_hinge, with_usual_keypad,
                                     with_usual_layout, with_usual_parts, with_usual_size)
 from model.pipeline.prompt_structure import front_door_text, lids_as_front_doors, spatial_for
@@ -243,6 +244,8 @@ class Generator:
         for tree in trees:
             tree.structure = held
             tree.front_up = lidded and tree.category == "StorageFurniture"
+            tree.knob_handles = stated is not None and tree.category == "StorageFurniture" \
+                and says_knobs(prompt)
             tree.spatial = with_usual_layout(prompt, tree.category, spatial_for(
                 stated.spatial, tree.category)) if stated is not None else None
             if tree.front_up:      # the chest's size, on the cabinet it is decoded as
@@ -306,7 +309,7 @@ class Generator:
 
     def _refine_layout(self, obj: ArticulatedObject, tree, report: dict) -> None:
         """The layout refinement steps of :meth:`layout`, in place."""
-        from model.refine import (arrange_stated, free_edge_handles, match_handles,
+        from model.refine import (arrange_stated, free_edge_handles, knob_handles, match_handles,
                                   place_stated_sides, refine_layout, safe_keypads)
         from model.refine.size import cap_drawer_height, lower_drawer_row, widen_door_row
         stated = tree.spatial if self.config.prompt_structure else None
@@ -322,6 +325,8 @@ class Generator:
         _keep_hinge_sides(obj, tree.hinges)
         report["layout"]["handles_to_free_edge"] = free_edge_handles(obj, stated)
         report["layout"]["handles_matched"] = match_handles(obj, stated)
+        if tree.knob_handles:
+            report["layout"]["knob_handles"] = len(knob_handles(obj))
 
     def _geometry(self, tree, gen, timings: dict, keep: Optional[ArticulatedObject],
                   shape) -> ArticulatedObject:

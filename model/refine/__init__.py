@@ -22,9 +22,9 @@ import numpy as np
 from model.core import ArticulatedObject, meshops
 
 from .arrange import arrange_stated, place_stated_sides, safe_keypads
-from .hardware import match_handles
+from .hardware import knob_handles, match_handles
 from .layout import LayoutConfig, face_of, free_edge_handles, refine_layout
-from .revolve import revolve_vessels
+from .revolve import revolve_knobs, revolve_vessels
 
 
 @dataclass
@@ -59,7 +59,7 @@ def refine_meshes(obj: ArticulatedObject, config: Optional[RefineConfig] = None,
     mans, tol = _within_budget(obj, int(0.85 * cfg.face_budget), cfg.floaters, frozen, prepared)
     report: dict = {"simplify_tolerance": tol}
     if cfg.revolve and not frozen:
-        report["revolved"] = revolve_vessels(obj, mans)
+        report["revolved"] = revolve_vessels(obj, mans) + revolve_knobs(obj, mans)
     if cfg.settle and not frozen:
         report["settled"] = M.settle_onto_parents(obj, mans)
         report["lids_fitted"] = M.fit_lids_to_necks(obj, mans)
@@ -173,5 +173,5 @@ def _back_within_budget(mans: dict, budget: int, tol: float, floaters: bool) -> 
 
 
 __all__ = ["RefineConfig", "simplify_meshes", "LayoutConfig", "arrange_stated",
-           "free_edge_handles", "match_handles", "place_stated_sides", "refine_layout",
+           "free_edge_handles", "knob_handles", "match_handles", "place_stated_sides", "refine_layout",
            "refine_meshes", "face_of", "safe_keypads"]

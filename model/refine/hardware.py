@@ -1,4 +1,5 @@
-"""Matching hardware: the handles on one body's doors (or on its drawers) made one size.
+"""Matching hardware: the handles on one body's doors (or on its drawers) made one size, and
+knob pulls where the text calls the handles knobs.
 
 The network decodes each handle's box on its own, so a pantry's four doors came out with a
 long bar on three and a small knob on the fourth, and a chest's four drawers with bars and
@@ -20,6 +21,10 @@ from .layout import _lohi, face_of
 SAME = 0.005     # m: handle boxes within this on every side are one size already
 MARGIN = 0.005   # m: a handle stays this far inside its front's outline
 FRONTS = ("door", "drawer")
+# a knob pull's box: its depth off the front and its diameter (m), as the data's knob-style
+# handles (model/data/synth/builder.py: 1.9-4.7 cm across, about 2.9 cm proud), and the
+# largest share of its front's smaller side it takes
+KNOB_DEPTH, KNOB_ACROSS, KNOB_SHARE = 0.028, 0.032, 0.5
 
 
 def _groups(obj: ArticulatedObject) -> dict[tuple, list[int]]:
@@ -104,3 +109,34 @@ def match_handles(obj: ArticulatedObject, stated: Optional[dict] = None) -> int:
             _place(obj, i, centre, r.bbox_size.copy())
             changed += 1
     return changed
+
+
+def knob_handles(obj: ArticulatedObject) -> list[str]:
+    """The fixed handles on a body's doors and drawers as knob pulls, for a text that calls
+    them knobs ("a nightstand with two drawers and a small knob on each"): the network gave
+    them bars with every seed (the data has knob handles, but its text model decodes the
+    bar's box whatever the text says). Each handle's box becomes a knob's (``KNOB_DEPTH``
+    off its front, ``KNOB_ACROSS`` across, at most ``KNOB_SHARE`` of the front's smaller
+    side), centred where it was, inside its front's outline; after meshing it is turned
+    into a solid of revolution about its front's normal (model.refine.meshes
+    ``revolve_knobs``). Returns the names of the handles made knobs (kept in the object's
+    metadata as ``knob_handles``)."""
+    done = []
+    for group in _groups(obj).values():
+        for i in group:
+            face = face_of(obj, i)
+            if face is None:
+                continue
+            k, _ = face
+            front = obj.parts[obj.parts[i].parent]
+            across = min(KNOB_ACROSS, KNOB_SHARE * float(min(
+                front.bbox_size[a] for a in range(3) if a != k)))
+            size = np.full(3, across)
+            size[k] = KNOB_DEPTH * across / KNOB_ACROSS
+            centre = _fitted(obj, i, size, size[k] / 2, face)
+            if centre is None:
+                continue
+            _place(obj, i, centre, size)
+            done.append(obj.parts[i].name)
+    obj.metadata["knob_handles"] = done
+    return done

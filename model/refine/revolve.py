@@ -29,6 +29,8 @@ PRESENT = 0.2      # a height is part of the profile where this share of the ray
 BRIDGE = 0.25      # the longest stretch of heights bridged, as a share of the part's length
 WINDOW = 5         # heights of the running median that smooths the profile's radii
 SEGMENTS = 96      # circular segments of the revolved mesh
+KNOB_SEGMENTS = 32  # ... of a 3 cm knob pull (twelve of them had taken a 30,000-face budget's
+                    # share from the carcass, which then overlapped a drawer)
 SMOOTH = 0.5       # profile simplification tolerance, in grid steps
 KEEP = (0.5, 3.0)  # the rebuilt volume's range, as a share of the decoded one; outside it
                    # the decoded part is not a solid of revolution about that axis
@@ -194,8 +196,31 @@ def revolve_vessels(obj: ArticulatedObject, mans: dict) -> list[str]:
     return done
 
 
-def _safe_revolved(man, origin, axis) -> Optional[object]:
+def revolve_knobs(obj: ArticulatedObject, mans: dict) -> list[str]:
+    """The knob pulls the layout made (``obj.metadata["knob_handles"]``,
+    model.refine.hardware.knob_handles) become solids of revolution about their front's
+    normal through their centre: a decoded bar squeezed into a knob's box is a lumpy block.
+    Returns the parts rebuilt."""
+    from .layout import face_of
+
+    names = set(obj.metadata.get("knob_handles") or ())
+    done = []
+    for k, p in enumerate(obj.parts):
+        if p.name not in names or k not in mans:
+            continue
+        face = face_of(obj, k)
+        if face is None:
+            continue
+        lo, hi = np.asarray(mans[k].bounding_box(), dtype=np.float64).reshape(2, 3)
+        new = _safe_revolved(mans[k], (lo + hi) / 2, np.eye(3)[face[0]], KNOB_SEGMENTS)
+        if new is not None:
+            mans[k] = new
+            done.append(p.name)
+    return done
+
+
+def _safe_revolved(man, origin, axis, segments: int = SEGMENTS) -> Optional[object]:
     try:
-        return revolved(man, origin, axis)
+        return revolved(man, origin, axis, segments)
     except (ValueError, RuntimeError):     # a degenerate cut or profile: keep the decoded part
         return None
