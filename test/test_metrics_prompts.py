@@ -73,6 +73,10 @@ CASES = [
      {"handle": 2}, {}),
     ("a cabinet with two doors, each with a cup pull", "StorageFurniture",
      {"door": 2, "handle": 2}, {}, {}),
+    # a category word before a part is a modifier: two doors, not one
+    ("a fridge with a freezer door on top and a fridge door below", "StorageFurniture",
+     {"door": 2}, {}, {}),
+    ("an oven with an oven door", "Oven", {"door": 1}, {}, {}),
 ]
 
 

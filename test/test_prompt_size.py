@@ -84,6 +84,10 @@ def test_everyday_names_keep_the_body_sizes_the_data_gives_them():
     assert with_usual_layout(text, cab, spatial) == spatial
     assert with_usual_layout("a filing cabinet with four drawers", cab, {}) == \
         {"drawer": {"layout": "column"}}
+    # a tool chest's drawers are stacked too ("a tool chest with five drawers" had them
+    # three over two)
+    assert with_usual_layout("a tool chest with five drawers", cab, {}) == \
+        {"drawer": {"layout": "column"}}
     assert with_usual_size("a cabinet", cab, {}, decoded=(0.5, 0.5, 0.5)) == {}
 
 
@@ -105,6 +109,11 @@ def test_everyday_names_the_data_lacks_get_their_usual_sizes():
                            decoded=(0.48, 0.92, 1.46)) == {"height": 0.4}
     # "bedside table" is the data's own name (NAMED_RANGES), not a side table
     assert with_usual_size("a bedside table", cab, {}, decoded=(0.45, 0.5, 0.6)) == {}
+    # a refrigerator is a tall cabinet; a mini fridge is not
+    assert with_usual_size("a refrigerator with two doors", cab, {},
+                           decoded=(0.45, 1.0, 0.9)) == \
+        {"depth": 0.65, "width": 0.7, "height": 1.75}
+    assert with_usual_size("a mini fridge", cab, {}, decoded=(0.45, 0.5, 0.8)) == {}
 
 
 @pytest.mark.parametrize("text,words", [
@@ -211,7 +220,8 @@ def test_a_safes_uncounted_keypad_gets_the_usual_three_by_three_keys():
     ("a washing machine", {"door": 1}), ("a jar", {"cap": 1}), ("a thumb drive", {"cap": 1}),
     # a chest that opens at the top has a lid; a chest alone is a chest of drawers
     ("a toy chest", {"lid": 1}), ("a wooden trunk", {"lid": 1}), ("a chest", {"drawer": 4}),
-    ("a storage ottoman", {"lid": 1}), ("a jewelry box", {"lid": 1})])
+    ("a storage ottoman", {"lid": 1}), ("a jewelry box", {"lid": 1}),
+    ("a chest freezer", {"lid": 1}), ("a refrigerator", {"door": 2}), ("a fridge", {"door": 2})])
 def test_a_bare_name_gets_its_usual_parts(text, parts):
     said = parse_prompt(text)
     assert not said.counts and not said.min_counts                 # a category, no part

@@ -108,6 +108,8 @@ def _scan_quantifier(toks: list[_Tok], k: int, m: _Mention, motions: list) -> No
             else:
                 m.exact = int(t.value) * mult
             return
+        elif t.kind == "CAT" and j == k - 1:
+            adjectives += 1         # "a fridge door", "two cabinet doors": a modifier
         elif t.kind == "ZERO":
             m.zero = True
             return

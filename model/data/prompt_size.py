@@ -120,6 +120,12 @@ EVERYDAY_RANGES: dict[str, list[tuple[tuple[str, ...], dict[str, tuple]]]] = {
          {"width": (0.3, 0.5, 0.4), "height": (0.5, 0.75, 0.6), "depth": (0.4, 0.65, 0.5)}),
         (("mini fridge", "minifridge", "bar fridge"),
          {"width": (0.4, 0.6, 0.48), "height": (0.45, 0.9, 0.85), "depth": (0.4, 0.6, 0.5)}),
+        # a chest freezer opens at the top (a lid: LIDDED_NAMES' usual part); before the
+        # upright one
+        (("chest freezer", "deep freezer", "box freezer"),
+         {"width": (0.6, 1.7, 1.0), "height": (0.8, 0.92, 0.85), "depth": (0.5, 0.8, 0.65)}),
+        (("refrigerator", "fridge", "fridge freezer", "freezer"),
+         {"width": (0.55, 0.95, 0.7), "height": (1.4, 2.0, 1.75), "depth": (0.55, 0.8, 0.65)}),
         (("dishwasher",), _DISHWASHER),
     ],
     "Oven": [
@@ -341,7 +347,8 @@ NAMED_LAYOUTS: dict[str, list[tuple[tuple[str, ...], str | None, dict]]] = {
               {"door": {"hpos": ["left"]}, **{c: {"hpos": ["right"], "layout": "column"}
                                               for c in ("knob", "button", "dial")},
                "button": {"hpos": ["right"], "layout": "column", "below": ["knob"]}})],
-    "StorageFurniture": [(("filing cabinet", "file cabinet"), None,
+    "StorageFurniture": [(("filing cabinet", "file cabinet", "tool chest", "rolling tool chest",
+                           "tool cabinet", "roller cabinet"), None,
                           {"drawer": {"layout": "column"}}),
                          # a wardrobe's doors stand side by side ("a four-door wardrobe" had
                          # four full-width doors stacked, 41 cm tall)
@@ -538,8 +545,10 @@ def with_usual_hinge(text: str, expected):
 # empty carcass. First match wins; the category's default last. Counts are the data's
 # typical ones for that kind of object (model/data/synth).
 USUAL_PARTS = {
-    "StorageFurniture": [(LIDDED_NAMES + ("jewelry box", "jewellery box", "trinket box"),
+    "StorageFurniture": [(LIDDED_NAMES + ("jewelry box", "jewellery box", "trinket box",
+                                         "chest freezer", "deep freezer", "box freezer"),
                           {"lid": 1}),
+                         (("refrigerator", "fridge", "freezer"), {"door": 2}),
                          (("dresser", "chest of drawers", "chest", "tallboy", "filing cabinet",
                            "drawer unit"), {"drawer": 4}),
                          (("nightstand", "night stand", "bedside table", "bedside cabinet"),
