@@ -179,6 +179,13 @@ def test_parse_free_form(prompt, category, counts, lower, joints):
      "StorageFurniture drawer=6 drawer.per_row=3/3"),
     ("a chest of drawers: five drawers, the top one split into two",
      "StorageFurniture drawer=6 drawer.per_row=2/1/1/1/1"),
+    # the top tier said last, or as what it is on (had been all five on top, or nothing)
+    ("a chest of drawers with 3 big drawers and 2 small drawers on top",
+     "StorageFurniture drawer=5 drawer.per_row=2/1/1/1"),
+    ("a dresser with 2 small drawers on top of 3 large ones",
+     "StorageFurniture drawer=5 drawer.per_row=2/1/1/1"),
+    ("a cabinet with a drawer on top of two doors", "StorageFurniture drawer=1 door=2 "
+     "drawer.above=door"),
     # doors under a row of doors stand side by side; a count shared out between the tiers
     # ("four doors, two on top and two below" had been four full-width doors in a column)
     ("a cupboard with two doors on top and two doors at the bottom",

@@ -88,6 +88,13 @@ def test_everyday_names_keep_the_body_sizes_the_data_gives_them():
     # three over two)
     assert with_usual_layout("a tool chest with five drawers", cab, {}) == \
         {"drawer": {"layout": "column"}}
+    # a credenza's doors stand in a row ("four doors and no drawers" had been four strips
+    # stacked), unless the text arranges them
+    assert with_usual_layout("a credenza with four doors and no drawers", cab, {}) == \
+        {"door": {"layout": "row"}}
+    text = "a sideboard with four doors, two on top and two below"
+    spatial = parse_prompt(text).spatial
+    assert with_usual_layout(text, cab, spatial) == spatial
     assert with_usual_size("a cabinet", cab, {}, decoded=(0.5, 0.5, 0.5)) == {}
 
 

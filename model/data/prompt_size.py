@@ -118,6 +118,8 @@ EVERYDAY_RANGES: dict[str, list[tuple[tuple[str, ...], dict[str, tuple]]]] = {
          {"width": (0.4, 0.9, 0.6), "height": (0.5, 0.8, 0.65), "depth": (0.35, 0.6, 0.45)}),
         (("desk pedestal", "file pedestal", "mobile pedestal"),
          {"width": (0.3, 0.5, 0.4), "height": (0.5, 0.75, 0.6), "depth": (0.4, 0.65, 0.5)}),
+        (("buffet", "buffet cabinet"),
+         {"width": (1.0, 2.2, 1.5), "height": (0.75, 1.0, 0.85), "depth": (0.4, 0.55, 0.45)}),
         (("mini fridge", "minifridge", "bar fridge"),
          {"width": (0.4, 0.6, 0.48), "height": (0.45, 0.9, 0.85), "depth": (0.4, 0.6, 0.5)}),
         # a chest freezer opens at the top (a lid: LIDDED_NAMES' usual part); before the
@@ -352,7 +354,12 @@ NAMED_LAYOUTS: dict[str, list[tuple[tuple[str, ...], str | None, dict]]] = {
                           {"drawer": {"layout": "column"}}),
                          # a wardrobe's doors stand side by side ("a four-door wardrobe" had
                          # four full-width doors stacked, 41 cm tall)
-                         (("wardrobe", "armoire"), None, {"door": {"layout": "row"}})],
+                         (("wardrobe", "armoire"), None, {"door": {"layout": "row"}}),
+                         # ... as a low, wide sideboard's do ("a credenza with four doors and
+                         # no drawers" had four 10 cm strips stacked, flipping down)
+                         (("sideboard", "credenza", "buffet", "tv stand", "tv cabinet",
+                           "tv unit", "tv console", "media console", "media cabinet"), None,
+                          {"door": {"layout": "row"}})],
 }
 
 

@@ -180,6 +180,21 @@ def _rewrite_counts(sentence: str) -> tuple[str, list[_Fact]]:
         return f"{a} {adj}{w} on top and {b} {adj}{w} below"
     sentence = re.sub(rf"\b{_N} over {_N} {_ADJ}{_FRONT}\b", over, sentence)
 
+    # the top tier said last ("three big drawers and two small drawers on top") or as what
+    # it is on ("two small drawers on top of three large ones"): said top first, as below
+    # (the five had been read as all on top, and the chest made three small ones on top)
+    def top_said_last(m: re.Match, top_first: bool) -> str:
+        n1, a1, w1, n2, a2, w2 = m.groups()
+        if w1.rstrip("s") != w2.rstrip("s"):
+            return m.group(0)
+        if top_first:
+            return f"{n1} {a1}{w1} on top and {n2} {a2}{w2} below"
+        return f"{n2} {a2}{w2} on top and {n1} {a1}{w1} below"
+    sentence = re.sub(rf"\b{_N} {_ADJ}{_FRONT} and {_N} {_ADJ}{_FRONT} {_ON_TOP}\b",
+                      lambda m: top_said_last(m, False), sentence)
+    sentence = re.sub(rf"\b{_N} {_ADJ}{_FRONT} on top of {_N} {_ADJ}{_FRONT}\b",
+                      lambda m: top_said_last(m, True), sentence)
+
     # "two small drawers on top and three large drawers below": a row of two over a column of
     # three; "five drawers, the top one split into two": a row of two over four
     sentence, tiered = _top_row(sentence)
