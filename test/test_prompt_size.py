@@ -61,6 +61,12 @@ def test_a_microwave_gets_its_control_column_beside_the_door_unless_sides_say_ot
     assert usual["button"] == {"hpos": ["right"], "layout": "column", "below": ["knob"]}
     assert usual["knob"] == {"hpos": ["right"], "layout": "column"}
     assert usual["door"]["hpos"] == ["left"]
+    # an arrangement stated as usual: the rest of the usual layout joins it ("a microwave
+    # with a pull handle and a column of buttons" had been left to the network)
+    text = "a microwave with a pull handle and a column of buttons"
+    usual = with_usual_layout(text, "Oven", parse_prompt(text).spatial)
+    assert usual["button"] == {"layout": "column", "hpos": ["right"], "below": ["knob"]}
+    assert usual["door"]["hpos"] == ["left"]
 
 
 def test_everyday_names_keep_the_body_sizes_the_data_gives_them():

@@ -748,3 +748,55 @@ def test_doors_either_side_of_a_drawer_stack_are_three_columns():
     _layout_same(row, "a TV console: 2 drawers in a row in the middle, with a door at each end")
     assert _grid_of(row, [2, 3]) == ("row", 1, 2)
     assert [part_position(row, i)[0] for i in (1, 4)] == ["left", "right"]
+
+
+def _microwave(door_y, door_w, controls):
+    """A 0.38 x 0.5 x 0.3 m microwave: a side-hinged door ``door_w`` wide at ``door_y`` with a
+    handle, and ``controls`` = [(label, y, z)] on the front."""
+    parts = [_part("body_0", "body", -1, (0.38, 0.5, 0.3), (0, 0, 0.15)),
+             _part("door_0", "door", 0, (0.02, door_w, 0.22), (0.2, door_y, 0.14),
+                   Joint(JointType.REVOLUTE, (0.2, door_y - door_w / 2, 0.14), (0, 0, -1),
+                         r_range=(0, 1.6)))]
+    parts.append(_part("handle_0", "handle", 1, (0.015, 0.01, 0.08),
+                       (0.215, door_y + door_w / 2 - 0.01, 0.14)))
+    for k, (lab, y, z) in enumerate(controls):
+        joint = Joint(JointType.PRISMATIC, (0.19, y, z), (-1, 0, 0), t_range=(0, 0.003)) \
+            if lab == "button" else Joint(JointType.REVOLUTE, (0.2, y, z), (1, 0, 0),
+                                          r_range=(0, 3.0))
+        parts.append(_part(f"{lab}_{k}", lab, 0, (0.02, 0.03, 0.03), (0.2, y, z), joint))
+    return ArticulatedObject(parts=parts, category="Oven", name="microwave")
+
+
+def test_a_microwave_door_fills_the_front_beside_its_control_column():
+    """"a microwave with a pull handle and a column of buttons" had a 3 cm wide door between
+    its controls, "... and six buttons" a column of buttons in the middle of the front: the
+    controls go into one column at the far side from the door (the stated one: left), and
+    the door fills the front up to it, hinged on its outer edge."""
+    from model.data.spatial import hinge_side
+    from model.refine import door_beside_controls
+    usual = {"door": {"hpos": ["left"]}}
+    obj = _microwave(-0.05, 0.03, [("knob", 0.05, 0.25), ("button", 0.05, 0.2),
+                                   ("button", 0.05, 0.15)])
+    assert door_beside_controls(obj, usual) == ["door_0: beside the controls"]
+    door, ctrl = obj.parts[1], obj.parts[3:]
+    assert all(c.bbox_center[1] == pytest.approx(0.25 - 0.03 - 0.015) for c in ctrl)
+    assert [c.bbox_center[2] for c in ctrl] == [0.25, 0.2, 0.15]          # heights kept
+    lo, hi = door.bbox_center - door.bbox_size / 2, door.bbox_center + door.bbox_size / 2
+    assert lo[1] == pytest.approx(-0.25 + 0.03) and hi[1] == pytest.approx(-0.22 + 0.5 * 0.76 - 0.06)
+    assert lo[2] == pytest.approx(0.03) and hi[2] == pytest.approx(0.27)
+    assert part_position(obj, 1)[0] == "left" and hinge_side(obj, 1) == "left"
+    h = obj.parts[2]                                   # the handle, still on the door
+    assert lo[1] <= h.bbox_center[1] <= hi[1] and h.bbox_center[0] > hi[0] - 0.01
+    # a door already filling its side, controls on both sides, or another front: left
+    wide = _microwave(-0.07, 0.34, [("knob", 0.19, 0.25), ("button", 0.19, 0.2)])
+    assert door_beside_controls(wide, usual) == []
+    # ... unless it is so wide that it reads as in the middle: it keeps to its side
+    centred = _microwave(-0.04, 0.38, [("knob", 0.19, 0.25), ("button", 0.19, 0.2)])
+    assert part_position(centred, 1)[0] == "middle"
+    assert door_beside_controls(centred, usual) == ["door_0: beside the controls"]
+    assert part_position(centred, 1)[0] == "left"
+    split = _microwave(0.0, 0.05, [("knob", -0.2, 0.25), ("knob", 0.2, 0.25)])
+    assert door_beside_controls(split) == []
+    cab = _microwave(-0.05, 0.03, [("knob", 0.05, 0.25)])
+    cab.category = "StorageFurniture"
+    assert door_beside_controls(cab, usual) == []

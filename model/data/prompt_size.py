@@ -363,10 +363,19 @@ NAMED_LAYOUTS: dict[str, list[tuple[tuple[str, ...], str | None, dict]]] = {
 }
 
 
+def _clashes(stated: dict, usual: dict) -> bool:
+    """Whether a label's stated facts arrange or place it otherwise than its usual facts do:
+    an arrangement or side the usual layout does not give it, or another value for one it
+    does ("a microwave with a column of buttons" agrees with the usual column; "... with a
+    row of buttons" does not)."""
+    said = {k: v for k, v in stated.items() if k in ARRANGEMENT_KEYS or k == "hpos"}
+    return any(k not in usual or usual[k] != v for k, v in said.items())
+
+
 def with_usual_layout(text: str, category: str | None, spatial: dict | None) -> dict | None:
     """``spatial`` (label -> facts) with the usual arrangement of an everyday name in ``text``
-    (``NAMED_LAYOUTS``) where the door hangs as usual, no arrangement is stated and every
-    stated side is the usual one (a stated fact is kept, the usual ones fill in the rest):
+    (``NAMED_LAYOUTS``) where the door hangs as usual and every stated arrangement and side
+    is the usual one (a stated fact is kept, the usual ones fill in the rest):
     what generation holds ("a microwave" gets its control column beside the door; "a
     microwave with a keypad on the right" its knobs in it too). Not a stated fact: the
     alignment metric checks the prompt's facts only."""
@@ -375,8 +384,7 @@ def with_usual_layout(text: str, category: str | None, spatial: dict | None) -> 
             continue
         facts = spatial or {}
         if (hinge is not None and (facts.get("door") or {}).get("hinge") != [hinge]) or any(
-                f.keys() & ARRANGEMENT_KEYS or (f.get("hpos") and f.get("hpos") != (
-                    usual.get(lab) or {}).get("hpos")) for lab, f in facts.items()):
+                _clashes(f, usual.get(lab) or {}) for lab, f in facts.items()):
             return spatial
         out = {lab: dict(f) for lab, f in facts.items()}
         for lab, f in usual.items():      # sides stated as usual ("a keypad on the right"):

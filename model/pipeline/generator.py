@@ -309,8 +309,9 @@ class Generator:
 
     def _refine_layout(self, obj: ArticulatedObject, tree, report: dict) -> None:
         """The layout refinement steps of :meth:`layout`, in place."""
-        from model.refine import (arrange_stated, free_edge_handles, knob_handles, match_handles,
-                                  place_stated_sides, refine_layout, safe_keypads)
+        from model.refine import (arrange_stated, door_beside_controls, free_edge_handles,
+                                  knob_handles, match_handles, place_stated_sides,
+                                  refine_layout, safe_keypads)
         from model.refine.size import cap_drawer_height, lower_drawer_row, widen_door_row
         stated = tree.spatial if self.config.prompt_structure else None
         report["arranged"] = arrange_stated(obj, stated) + safe_keypads(obj, stated)
@@ -322,6 +323,7 @@ class Generator:
         report["layout"]["drawers_shortened"] = cap_drawer_height(obj)
         if stated:
             report["arranged"] += place_stated_sides(obj, stated)
+        report["arranged"] += door_beside_controls(obj, stated)
         _keep_hinge_sides(obj, tree.hinges)
         report["layout"]["handles_to_free_edge"] = free_edge_handles(obj, stated)
         report["layout"]["handles_matched"] = match_handles(obj, stated)

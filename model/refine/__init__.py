@@ -21,7 +21,7 @@ import numpy as np
 
 from model.core import ArticulatedObject, meshops
 
-from .arrange import arrange_stated, place_stated_sides, safe_keypads
+from .arrange import arrange_stated, door_beside_controls, place_stated_sides, safe_keypads
 from .hardware import knob_handles, match_handles
 from .layout import LayoutConfig, face_of, free_edge_handles, refine_layout
 from .revolve import revolve_knobs, revolve_vessels
@@ -173,5 +173,6 @@ def _back_within_budget(mans: dict, budget: int, tol: float, floaters: bool) -> 
 
 
 __all__ = ["RefineConfig", "simplify_meshes", "LayoutConfig", "arrange_stated",
+           "door_beside_controls",
            "free_edge_handles", "knob_handles", "match_handles", "place_stated_sides", "refine_layout",
            "refine_meshes", "face_of", "safe_keypads"]
