@@ -455,10 +455,13 @@ def _clear_panels(obj: ArticulatedObject, members: list[int], k: int) -> int:
 def _onto_controls(q, d: int, centre: float, controls: list) -> bool:
     """Whether moving control ``q``'s centre to ``centre`` along axis ``d`` brings it within
     GAP of another control it stands clear of now (the lower row of "six knobs, 2 rows of
-    3" lifted off an oven door into the upper row)."""
+    3" lifted off an oven door into the upper row), or into one it is within GAP of but
+    does not overlap now (a column of knobs 1 mm apart: the lowest, lifted 1.7 cm off a
+    toaster oven's door, had gone half into the one above it)."""
     moved = SimpleNamespace(bbox_center=q.bbox_center.copy(), bbox_size=q.bbox_size)
     moved.bbox_center[d] = centre
-    return any(o is not q and not _overlap(q, o, -GAP) and _overlap(moved, o, -GAP)
+    return any(o is not q and ((not _overlap(q, o, -GAP) and _overlap(moved, o, -GAP))
+                               or (not _overlap(q, o) and _overlap(moved, o)))
                for o in controls)
 
 
