@@ -77,6 +77,11 @@ CASES = [
     ("a fridge with a freezer door on top and a fridge door below", "StorageFurniture",
      {"door": 2}, {}, {}),
     ("an oven with an oven door", "Oven", {"door": 1}, {}, {}),
+    # a spec list: "drawers: 4" is four drawers (had been at least two)
+    ("Cabinet with drawers: 4. Doors: 2.", "StorageFurniture", {"drawer": 4, "door": 2}, {}, {}),
+    ("oven - knobs: 4, buttons: 2, door: 1", "Oven", {"knob": 4, "button": 2, "door": 1}, {},
+     {}),
+    ("an entertainment center with two doors", "StorageFurniture", {"door": 2}, {}, {}),
 ]
 
 

@@ -528,3 +528,46 @@ def test_a_chest_with_a_lid_gets_its_names_size_with_the_decoded_proportions():
     said = with_lidded_size("a 1 m wide chest with a lid, 50 cm tall", {"width": 1.0, "height": 0.5}, cab)
     assert said["width"] == 1.0 and said["height"] == 0.5
     assert LIDDED_RANGES["depth"][0] <= said["depth"] <= LIDDED_RANGES["depth"][1]
+
+
+def _drawer_stack(n, front, width=1.3):
+    """A ``width`` m wide, 0.9 m tall cabinet with ``n`` drawers ``front`` m tall stacked at
+    its top, each with a handle."""
+    parts = [Part("body_0", "body", -1, [0.0, 0.0, 0.45], [0.5, width, 0.9])]
+    for k in range(n):
+        z = 0.88 - front / 2 - k * (front + 0.003)
+        parts.append(Part(f"drawer_{k}", "drawer", 0, [0.24, 0.0, z],
+                          [0.02, width - 0.05, front],
+                          Joint(JointType.PRISMATIC, [0.24, 0.0, z], [1, 0, 0],
+                                t_range=(0, 0.4))))
+    for k in range(n):
+        d = parts[1 + k]
+        parts.append(Part(f"handle_{k}", "handle", 1 + k, d.bbox_center + [0.02, 0, 0],
+                          [0.02, min(0.2, width / 8), 0.01]))
+    return ArticulatedObject(parts=parts, category="StorageFurniture")
+
+
+def test_a_stack_of_drawers_thinner_than_the_datas_stands_side_by_side():
+    """"a kitchen cabinet with four doors on the bottom and four drawers on top" had four
+    4-5 cm strips stacked: no drawer of the data is under about 9 cm. Such a column is laid
+    out as one row in the rectangle it covers (two rows where one row's fronts would be
+    too narrow), each handle staying on its drawer; a stated arrangement, drawers of the
+    data's heights and other categories stay."""
+    from model.refine.size import THIN_DRAWER, row_thin_drawers
+    obj = _drawer_stack(4, 0.045)
+    assert row_thin_drawers(obj) == 1
+    drawers, handles = obj.parts[1:5], obj.parts[5:]
+    assert len({round(float(d.bbox_center[2]), 6) for d in drawers}) == 1       # one row
+    assert all(d.bbox_size[2] >= THIN_DRAWER for d in drawers)
+    for d, h in zip(drawers, handles):
+        assert abs(h.bbox_center[1] - d.bbox_center[1]) < 1e-9                  # on its drawer
+        assert abs(h.bbox_center[2] - d.bbox_center[2]) < 1e-9
+    assert row_thin_drawers(obj) == 0
+    narrow = _drawer_stack(4, 0.06, width=0.3)        # one row would be 6 cm wide strips
+    assert row_thin_drawers(narrow) == 1
+    assert len({round(float(d.bbox_center[2]), 6) for d in narrow.parts[1:5]}) == 2
+    assert row_thin_drawers(_drawer_stack(4, 0.15)) == 0                        # data-sized
+    assert row_thin_drawers(_drawer_stack(4, 0.045), {"drawer": {"layout": "column"}}) == 0
+    oven = _drawer_stack(4, 0.045)
+    oven.category = "Oven"
+    assert row_thin_drawers(oven) == 0

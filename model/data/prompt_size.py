@@ -118,6 +118,8 @@ EVERYDAY_RANGES: dict[str, list[tuple[tuple[str, ...], dict[str, tuple]]]] = {
          {"width": (0.4, 0.9, 0.6), "height": (0.5, 0.8, 0.65), "depth": (0.35, 0.6, 0.45)}),
         (("desk pedestal", "file pedestal", "mobile pedestal"),
          {"width": (0.3, 0.5, 0.4), "height": (0.5, 0.75, 0.6), "depth": (0.4, 0.65, 0.5)}),
+        (("entertainment center", "entertainment centre", "entertainment unit"),
+         {"width": (1.2, 2.5, 1.6), "height": (0.45, 1.9, 0.9), "depth": (0.35, 0.6, 0.45)}),
         (("buffet", "buffet cabinet"),
          {"width": (1.0, 2.2, 1.5), "height": (0.75, 1.0, 0.85), "depth": (0.4, 0.55, 0.45)}),
         (("mini fridge", "minifridge", "bar fridge"),
@@ -358,7 +360,9 @@ NAMED_LAYOUTS: dict[str, list[tuple[tuple[str, ...], str | None, dict]]] = {
                          # ... as a low, wide sideboard's do ("a credenza with four doors and
                          # no drawers" had four 10 cm strips stacked, flipping down)
                          (("sideboard", "credenza", "buffet", "tv stand", "tv cabinet",
-                           "tv unit", "tv console", "media console", "media cabinet"), None,
+                           "tv unit", "tv console", "media console", "media cabinet",
+                           "entertainment center", "entertainment centre",
+                           "entertainment unit"), None,
                           {"door": {"layout": "row"}})],
 }
 

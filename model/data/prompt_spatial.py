@@ -145,6 +145,11 @@ def _rewrite_counts(sentence: str) -> tuple[str, list[_Fact]]:
     """Rewrite grid wordings that carry a count ("two rows of three drawers" -> "6 drawers",
     "a 3 x 3 keypad" -> "9 keypad buttons") and return the arrangement facts they state."""
     facts: list[_Fact] = []
+    # a spec list's "drawers: 4, doors: 2" is "4 drawers, 2 doors" (the counts had not been
+    # read, and the network made four doors)
+    sentence = re.sub(rf"\b([a-z]+)\s*[:=]\s*{_N}(?=\s*(?:$|[,;)]|and\b|plus\b))",
+                      lambda m: f"{m.group(2)} {m.group(1)}" if _is_part(m.group(1))
+                      else m.group(0), sentence)
     # "three rows with three drawers per row" is "three rows of three drawers"
     sentence = re.sub(rf"\b{_N} (rows|columns|stacks) (?:with|containing|holding|of) {_N} "
                       rf"([a-z]+) (?:per|in each|each|a) (?:row|column|stack)\b",

@@ -312,7 +312,8 @@ class Generator:
         from model.refine import (arrange_stated, door_beside_controls, free_edge_handles,
                                   knob_handles, match_handles, place_stated_sides,
                                   refine_layout, safe_keypads)
-        from model.refine.size import cap_drawer_height, lower_drawer_row, widen_door_row
+        from model.refine.size import (cap_drawer_height, lower_drawer_row, row_thin_drawers,
+                                       widen_door_row)
         stated = tree.spatial if self.config.prompt_structure else None
         report["arranged"] = arrange_stated(obj, stated) + safe_keypads(obj, stated)
         report["layout"] = refine_layout(obj, stated=stated)
@@ -321,6 +322,7 @@ class Generator:
         report["layout"]["door_row_widened"] = None if tree.width_said else \
             widen_door_row(obj)
         report["layout"]["drawers_shortened"] = cap_drawer_height(obj)
+        report["layout"]["thin_drawers_side_by_side"] = row_thin_drawers(obj, stated)
         if stated:
             report["arranged"] += place_stated_sides(obj, stated)
         report["arranged"] += door_beside_controls(obj, stated)

@@ -187,6 +187,53 @@ def cap_drawer_height(obj: ArticulatedObject) -> int:
     return done
 
 
+THIN_DRAWER = 0.07   # m: the data's drawer fronts are at least about 9 cm tall (bands of 10-12
+                     # cm, model/data/synth/cabinets.py); a stack of thinner ones is re-laid
+
+
+def row_thin_drawers(obj: ArticulatedObject, stated: Optional[dict] = None) -> int:
+    """A column of drawers on a storage front whose fronts are thinner than ``THIN_DRAWER``
+    (the network's stack of four 4-5 cm strips in "a kitchen cabinet with four doors on the
+    bottom and four drawers on top", or "... 4 drawers total") is laid out side by side in
+    the rectangle it covers: one row, or two rows of half of them where one row's fronts
+    would be taller than ``DRAWER_ASPECT`` times their width (model.refine.arrange
+    ``_lay_out``; handles move with their drawers). Left where neither gives fronts at least
+    ``THIN_DRAWER`` tall, and where the prompt arranges the drawers. -> columns re-laid."""
+    from .arrange import H, V, _lay_out
+    from model.data.expected_structure import ARRANGEMENT_KEYS
+
+    if obj.category != "StorageFurniture" or \
+            set((stated or {}).get("drawer") or {}) & set(ARRANGEMENT_KEYS):
+        return 0
+    root = obj.root
+    drawers = sorted((i for i in obj.children(root) if obj.parts[i].label == "drawer"
+                      and face_of(obj, i) == (FRONT, 1.0)),
+                     key=lambda i: obj.parts[i].bbox_center[H])
+    columns: list[list[int]] = []
+    for i in drawers:                 # drawers whose centres line up across the front
+        p = obj.parts[i]
+        if columns and abs(obj.parts[columns[-1][0]].bbox_center[H] - p.bbox_center[H]) \
+                < 0.25 * p.bbox_size[H]:
+            columns[-1].append(i)
+        else:
+            columns.append([i])
+    done = 0
+    for col in columns:
+        if len(col) < 2 or np.median([obj.parts[i].bbox_size[V] for i in col]) >= THIN_DRAWER:
+            continue
+        lo = np.min([obj.parts[i].bbox_center - obj.parts[i].bbox_size / 2 for i in col], 0)
+        hi = np.max([obj.parts[i].bbox_center + obj.parts[i].bbox_size / 2 for i in col], 0)
+        n, W, Hh = len(col), hi[H] - lo[H], hi[V] - lo[V]
+        options = [[n]] + ([[n // 2, n // 2]] if n % 2 == 0 and n >= 4 else [])
+        for per_row in options:
+            w, h = W / max(per_row), Hh / len(per_row)
+            if THIN_DRAWER <= h <= DRAWER_ASPECT * w:
+                _lay_out(obj, col, per_row)
+                done += 1
+                break
+    return done
+
+
 # m: where the data puts the centre of a body's box in x, y (model/data/synth): a USB stick's
 # casing is centred and its plug reaches 1.1-1.3 cm past it (synth-v6: the box centre sits
 # 5.6-6.4 mm in front of the axis); every other category's body is centred
