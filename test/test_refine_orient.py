@@ -97,3 +97,14 @@ def test_shipped_model_makes_a_chest_whose_lid_is_hinged_at_the_back(shipped):
         assert al.aligned, al.failures
     rep = audit_object(results[0].obj, config=AuditConfig(physics=False))
     assert rep.sim_ready, rep.failures
+
+
+def test_a_structure_given_outright_is_not_turned_into_a_chest(shipped):
+    """A structure the user gives is held as given: "a toy chest" with a door asked for
+    outright is a cabinet with that door, not a chest with a lid."""
+    [res] = shipped.generate("a toy chest", seed=0,
+                             structure={"category": "StorageFurniture", "door": 1,
+                                        "drawer": 0})
+    labels = [p.label for p in res.obj.parts]
+    assert labels.count("door") == 1 and "lid" not in labels
+    assert "turned_front_up" not in res.obj.metadata

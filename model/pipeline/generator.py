@@ -213,7 +213,8 @@ class Generator:
             from model.data.prompt_parse import parse_prompt
             stated = with_usual_hinge(prompt, with_usual_parts(
                 prompt, with_usual_keypad(prompt, parse_prompt(prompt))))
-            stated, lidded = lids_as_front_doors(stated)
+            if structure is None:     # (a structure given outright is the user's own)
+                stated, lidded = lids_as_front_doors(stated)
             if lidded:       # the network reads the cabinet the chest is decoded as
                 with torch_threads(cfg.token_threads):
                     cond, mask = self.articulation.encode_text([front_door_text(stated)])
