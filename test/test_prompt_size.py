@@ -234,7 +234,8 @@ def test_a_safes_uncounted_keypad_gets_the_usual_three_by_three_keys():
     # a chest that opens at the top has a lid; a chest alone is a chest of drawers
     ("a toy chest", {"lid": 1}), ("a wooden trunk", {"lid": 1}), ("a chest", {"drawer": 4}),
     ("a storage ottoman", {"lid": 1}), ("a jewelry box", {"lid": 1}),
-    ("a chest freezer", {"lid": 1}), ("a refrigerator", {"door": 2}), ("a fridge", {"door": 2})])
+    ("a chest freezer", {"lid": 1}), ("a refrigerator", {"door": 2}), ("a fridge", {"door": 2}),
+    ("a camping cooler", {"lid": 1}), ("a toolbox", {"lid": 1})])
 def test_a_bare_name_gets_its_usual_parts(text, parts):
     said = parse_prompt(text)
     assert not said.counts and not said.min_counts                 # a category, no part

@@ -76,7 +76,7 @@ _DISHWASHER = {"width": (0.45, 0.61, 0.6), "height": (0.8, 0.9, 0.85),
 # with a lid that no other name sizes ("a chest with a lid hinged at the back")
 LIDDED_NAMES = ("toy chest", "toy box", "toy trunk", "blanket chest", "blanket box",
                 "hope chest", "storage chest", "storage trunk", "trunk", "storage box",
-                "storage bench", "storage ottoman", "ottoman")
+                "storage bench", "storage ottoman", "ottoman", "storage crate", "crate")
 LIDDED_RANGES = {"width": (0.5, 1.3, 0.85), "height": (0.35, 0.7, 0.5),
                  "depth": (0.3, 0.65, 0.45)}
 
@@ -89,6 +89,8 @@ EVERYDAY_RANGES: dict[str, list[tuple[tuple[str, ...], dict[str, tuple]]]] = {
     "StorageFurniture": [
         (("jewelry box", "jewellery box", "jewelry chest", "jewellery chest", "trinket box"),
          {"width": (0.15, 0.5, 0.3), "height": (0.08, 0.45, 0.2), "depth": (0.1, 0.35, 0.2)}),
+        (("cooler", "cool box", "ice chest", "coolbox"),
+         {"width": (0.35, 0.9, 0.6), "height": (0.25, 0.55, 0.4), "depth": (0.25, 0.5, 0.38)}),
         (LIDDED_NAMES, LIDDED_RANGES),
         (("toolbox", "tool box"),
          {"width": (0.3, 0.7, 0.5), "height": (0.15, 0.5, 0.3), "depth": (0.15, 0.4, 0.25)}),
@@ -565,7 +567,9 @@ def with_usual_hinge(text: str, expected):
 # typical ones for that kind of object (model/data/synth).
 USUAL_PARTS = {
     "StorageFurniture": [(LIDDED_NAMES + ("jewelry box", "jewellery box", "trinket box",
-                                         "chest freezer", "deep freezer", "box freezer"),
+                                         "chest freezer", "deep freezer", "box freezer",
+                                         "cooler", "cool box", "coolbox", "ice chest",
+                                         "toolbox", "tool box"),
                           {"lid": 1}),
                          (("refrigerator", "fridge", "freezer"), {"door": 2}),
                          (("dresser", "chest of drawers", "chest", "tallboy", "filing cabinet",
