@@ -587,6 +587,23 @@ USUAL_PARTS = {
 }
 
 
+def usual_parts_text(text: str, said, usual) -> str | None:
+    """What the text model reads for a name given its usual parts (``usual``, from
+    :func:`with_usual_parts` of the parse ``said``): the text with those parts named ("a
+    cabinet" -> "a cabinet with two doors"), or None where no usual part was added. The
+    network decodes a part the text never names poorly: "a cabinet", "a storage cabinet"
+    and "a closet" had both their doors lying on the body's bottom with 6 of 6 seeds, "a
+    refrigerator" with 5 of 6."""
+    from model.data import vocab
+
+    added = {lab: n for lab, n in usual.counts.items() if lab not in said.counts and n > 0}
+    if not added:
+        return None
+    words = [("a" if n == 1 else vocab.number_word(n)) + " " +
+             (lab if n == 1 else vocab.plural(lab)) for lab, n in added.items()]
+    return f"{text.strip().rstrip('.!?')} with {' and '.join(words)}"
+
+
 def with_usual_parts(text: str, expected):
     """``expected`` (a parsed prompt, ``ExpectedStructure``) with a bare name's usual parts
     (``USUAL_PARTS``) as its counts when the text names a category and no part at all (no

@@ -27,10 +27,10 @@ from model.core.runtime import keep_heap_mapped, torch_threads
 from model.pipeline.api import (ExportResult, GeneratedObject, GenerationConfig,
                                 GenerationError)
 from model.pipeline.part_pool import PartPool, default_workers
-from model.data.prompt_size import (FRONT_UP_DIMS, height_said, says_knobs, width_said,
-                                    with_lidded_size,
-                                    with_usual_hinge, with_usual_keypad,
-                                    with_usual_layout, with_usual_parts, with_usual_size)
+from model.data.prompt_size import (FRONT_UP_DIMS, height_said, says_knobs, usual_parts_text,
+                                    width_said, with_lidded_size, with_usual_hinge,
+                                    with_usual_keypad, with_usual_layout, with_usual_parts,
+                                    with_usual_size)
 from model.pipeline.prompt_structure import front_door_text, lids_as_front_doors, spatial_for
 # checkpoint discovery and request checks, re-exported from their modules
 from model.pipeline.checkpoints import (STAGES, WEIGHTS_DIR, check_codebooks,  # noqa: F401
@@ -211,13 +211,18 @@ class Generator:
         stated, lidded = None, False
         if modality == "text" and keep is None and cfg.prompt_structure:
             from model.data.prompt_parse import parse_prompt
-            stated = with_usual_hinge(prompt, with_usual_parts(
-                prompt, with_usual_keypad(prompt, parse_prompt(prompt))))
+            said = with_usual_keypad(prompt, parse_prompt(prompt))
+            usual = with_usual_parts(prompt, said)
+            stated = with_usual_hinge(prompt, usual)
             if structure is None:     # (a structure given outright is the user's own)
                 stated, lidded = lids_as_front_doors(stated)
-            if lidded:       # the network reads the cabinet the chest is decoded as
+            # the network reads the usual parts a bare name gets, or the cabinet a chest is
+            # decoded as, named in the text
+            reading = front_door_text(stated) if lidded else \
+                usual_parts_text(prompt, said, usual) if structure is None else None
+            if reading is not None:
                 with torch_threads(cfg.token_threads):
-                    cond, mask = self.articulation.encode_text([front_door_text(stated)])
+                    cond, mask = self.articulation.encode_text([reading])
             if structure is None:
                 spec, splan = self._stated_structure(stated, cond, mask, seed)
 
