@@ -10,7 +10,8 @@ the candidate ships when it is better on template alignment (the project metric)
 the raw audit, and no worse than the shipped model on the refined audit's sim-ready share and
 its objects whose worst part has at most 2 connected components (1.5 % of the objects
 allowed each), free-form and dev alignment (1 point allowed), collapsed sibling pairs and
-bare names decoded with a moving part (scripts/bare_names.py).
+bare names decoded with a moving part and with their doors and drawers on the front
+(scripts/bare_names.py).
 
 The audit runs 6 seeds (288 objects). The component row mostly measures the shape prior,
 which a candidate may share with the shipped model; at 96 objects a difference of 2 objects
@@ -63,8 +64,9 @@ def measures(runs: Path, who: str) -> dict:
         b = ((_load(runs / f"{name}_{who}.json") or {}).get("breakdown") or {}).get("all", {})
         out[f"{name} prompts: alignment"] = b.get("alignment")
         out[f"{name} prompts: spatial facts"] = b.get("spatial")
-    out["bare names: objects with a moving part"] = (
-        _load(runs / f"bare_{who}.json") or {}).get("with_moving_part")
+    bare = _load(runs / f"bare_{who}.json") or {}
+    out["bare names: objects with a moving part"] = bare.get("with_moving_part")
+    out["bare names: doors and drawers on the front"] = bare.get("fronts_on_front")
     return out
 
 
@@ -94,7 +96,8 @@ def verdict(c: dict, s: dict) -> tuple[bool, list[str]]:
     for key in ("audit refined: sim-ready", "audit refined: worst part <= 2 components",
                 "freeform prompts: alignment", "dev prompts: alignment",
                 "layout refined: collapsed sibling pairs (val)",
-                "bare names: objects with a moving part"):
+                "bare names: objects with a moving part",
+                "bare names: doors and drawers on the front"):
         if not not_worse(key):
             why.append(f"worse: {key}")
     return not why, why

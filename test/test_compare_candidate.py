@@ -30,7 +30,8 @@ def _write(runs: Path, who: str, align: float, raw: float, refined: float, colla
     for name in ("freeform", "dev"):
         (runs / f"{name}_{who}.json").write_text(json.dumps(
             {"breakdown": {"all": {"alignment": 0.95, "spatial": 0.9}}}))
-    (runs / f"bare_{who}.json").write_text(json.dumps({"with_moving_part": 1.0}))
+    (runs / f"bare_{who}.json").write_text(json.dumps({"with_moving_part": 1.0,
+                                                       "fronts_on_front": 1.0}))
 
 
 def test_the_ship_rule_wants_better_alignment_and_raw_audit_and_no_worse_refined(tmp_path):
@@ -49,8 +50,10 @@ def test_the_ship_rule_wants_better_alignment_and_raw_audit_and_no_worse_refined
     c["layout refined: collapsed sibling pairs (val)"] = 5
     c["audit refined: worst part <= 2 components"] = 90 / 96     # five objects more shredded
     c["bare names: objects with a moving part"] = 0.5            # "a cabinet": an empty box
+    c["bare names: doors and drawers on the front"] = 0.6        # ... or its doors below it
     assert mod.verdict(c, s)[1] == ["worse: audit refined: worst part <= 2 components",
-                                    "worse: bare names: objects with a moving part"]
+                                    "worse: bare names: objects with a moving part",
+                                    "worse: bare names: doors and drawers on the front"]
     c["template alignment, project metric (val)"] = None     # a missing file never ships
     assert "not better: template alignment, project metric (val)" in mod.verdict(c, s)[1]
     assert mod.main([str(tmp_path)]) == 0
