@@ -315,7 +315,7 @@ def lids_as_front_doors(expected):
     facts["hinge"] = [s for s in sides if s] or ["top"]
     if lids > 1:
         facts.setdefault("layout", "row")
-    spatial = {k: v for k, v in moved(expected.spatial).items() if k != "door"}
+    spatial = {k: v for k, v in expected.spatial.items() if k not in ("lid", "door")}
     spatial["door"] = facts
     return replace(expected, counts=moved(expected.counts),
                    min_counts=moved(expected.min_counts),

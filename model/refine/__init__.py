@@ -173,6 +173,6 @@ def _back_within_budget(mans: dict, budget: int, tol: float, floaters: bool) -> 
 
 
 __all__ = ["RefineConfig", "simplify_meshes", "LayoutConfig", "arrange_stated",
-           "door_beside_controls",
-           "free_edge_handles", "knob_handles", "match_handles", "place_stated_sides", "refine_layout",
+           "door_beside_controls", "free_edge_handles", "knob_handles", "match_handles",
+           "place_stated_sides", "refine_layout",
            "refine_meshes", "face_of", "safe_keypads"]

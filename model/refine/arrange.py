@@ -828,7 +828,6 @@ def _mirror(obj: ArticulatedObject, group: list[int], ax: int) -> bool:
     return True
 
 
-CONTROL_LABELS = ("knob", "dial", "button")
 NARROW_DOOR = 0.8      # a side-hinged door under this share of the room beside its controls'
                        # column (either side) gets that room
 SIDE_SPARE = 0.04      # of the front's width: such a door's centre this much further out than
@@ -855,15 +854,15 @@ def door_beside_controls(obj: ArticulatedObject, stated: Optional[dict] = None) 
     place on it (``free_edge_handles`` then sets it at the free edge); its hinge goes onto
     the new edge (``layout._hinge``). Run after the stated sides are placed. Returns e.g.
     ["door_0: beside the controls"]."""
-    from .layout import _hinge, _set
-    from .siblings import FILL_FRAME
+    from .layout import CONTROLS, _hinge, _set
+    from .siblings import FILL_FRAME, carry_children
 
     if obj.category != "Oven":
         return []
     root = obj.root
     front = [c for c in obj.children(root) if face_of(obj, c) == (FRONT, 1.0)]
     doors = [c for c in front if obj.parts[c].label == "door"]
-    ctrl = [c for c in front if obj.parts[c].label in CONTROL_LABELS]
+    ctrl = [c for c in front if obj.parts[c].label in CONTROLS]
     others = [c for c in front if obj.parts[c].label in ("drawer", "tray")]
     if len(doors) != 1 or not ctrl or others:
         return []
@@ -874,8 +873,9 @@ def door_beside_controls(obj: ArticulatedObject, stated: Optional[dict] = None) 
     (blo, bhi), (dlo, dhi) = _lohi(obj.parts[root]), _lohi(door)
     frame = FILL_FRAME["Oven"][0]
     centres = [obj.parts[c].bbox_center[H] for c in ctrl]
+    boxes = [_lohi(obj.parts[c]) for c in ctrl]
     side = ((stated or {}).get("door") or {}).get("hpos")
-    spans = sorted((_lohi(obj.parts[c])[0][V], _lohi(obj.parts[c])[1][V]) for c in ctrl)
+    spans = sorted((clo[V], chi[V]) for clo, chi in boxes)
     stack = all(a[1] + GAP <= b[0] for a, b in zip(spans, spans[1:]))
     if side in (["left"], ["right"]) and stack:
         # the controls on the side away from the stated door (+y is the viewer's right)
@@ -889,8 +889,8 @@ def door_beside_controls(obj: ArticulatedObject, stated: Optional[dict] = None) 
     wide = max(float(obj.parts[c].bbox_size[H]) for c in ctrl)
     column = (bhi[H] - frame - wide / 2) if sign > 0 else (blo[H] + frame + wide / 2)
     near = column - sign * (wide / 2 + CLEAR) if stack else (
-        min(_lohi(obj.parts[c])[0][H] for c in ctrl) - CLEAR if sign > 0 else
-        max(_lohi(obj.parts[c])[1][H] for c in ctrl) + CLEAR)
+        min(clo[H] for clo, _ in boxes) - CLEAR if sign > 0 else
+        max(chi[H] for _, chi in boxes) + CLEAR)
     # at most as wide as keeps it on its side of the front (HPOS_MARGIN, with SIDE_SPARE)
     most = (bhi[H] - blo[H]) * (1.0 - HPOS_MARGIN - SIDE_SPARE) - 2 * frame
     lo, hi = dlo.copy(), dhi.copy()
@@ -909,15 +909,7 @@ def door_beside_controls(obj: ArticulatedObject, stated: Optional[dict] = None) 
             move = np.zeros(3)
             move[H] = column - obj.parts[c].bbox_center[H]
             _move_subtree(obj, c, move)
-    for c in obj.children(i):               # the handle keeps its place on the door
-        q = obj.parts[c]
-        move = np.zeros(3)
-        for d in (H, V):
-            t = (q.bbox_center[d] - dlo[d]) / max(dhi[d] - dlo[d], 1e-9)
-            half = min(q.bbox_size[d], hi[d] - lo[d]) / 2
-            move[d] = np.clip(lo[d] + t * (hi[d] - lo[d]), lo[d] + half, hi[d] - half) \
-                - q.bbox_center[d]
-        _move_subtree(obj, c, move)
+    carry_children(obj, i, (dlo, dhi), (lo, hi), (H, V))     # its handle stays on it
     _set(door, lo, hi)
     _hinge(obj, i, (FRONT, 1.0))
     return [f"{door.name}: beside the controls"]

@@ -765,18 +765,31 @@ def _oven_panel(obj: ArticulatedObject, par: int, members: list[int], k: int,
             size[H] = size[V] = min(size[H], size[V])
         _move_subtree(obj, i, centre - p.bbox_center)
         p.bbox_size = np.maximum(size, MIN_SIDE)
-    for c in obj.children(doors[0]):        # the door's handle keeps its place on the door,
-        q = obj.parts[c]                     # below the top edge of one that drops down (the
-        move = np.zeros(3)                   # data's: HANDLE_DROP under it)
-        for d in (H, V):
-            t = (q.bbox_center[d] - dlo[d]) / max(dhi[d] - dlo[d], 1e-9)
+    # the door's handle keeps its place on the door, below the top edge of one that drops
+    # down (the data's: HANDLE_DROP under it)
+    carry_children(obj, doors[0], (dlo, dhi), (lo, hi), (H, V), drop=drops)
+    _set(door, lo, hi)
+    return 1
+
+
+def carry_children(obj: ArticulatedObject, i: int, old: tuple, new: tuple, axes: tuple,
+                   drop: bool = False) -> None:
+    """The children of panel ``i`` (its handle) keep their place on it while its box goes
+    from ``old`` to ``new`` ((lo, hi) each): along each of ``axes`` (across, up its face)
+    at the same share of its extent, inside the new box; with ``drop`` (a door that drops
+    down) ``HANDLE_DROP`` under its new top edge instead."""
+    (olo, ohi), (lo, hi) = old, new
+    up = axes[-1]
+    for c in obj.children(i):
+        q = obj.parts[c]
+        move = np.zeros(3)
+        for d in axes:
+            t = (q.bbox_center[d] - olo[d]) / max(ohi[d] - olo[d], 1e-9)
             half = min(q.bbox_size[d], hi[d] - lo[d]) / 2
-            at = hi[V] - max(HANDLE_DROP, half + CLEAR) if drops and d == V \
+            at = hi[up] - max(HANDLE_DROP, half + CLEAR) if drop and d == up \
                 else lo[d] + t * (hi[d] - lo[d])
             move[d] = np.clip(at, lo[d] + half, hi[d] - half) - q.bbox_center[d]
         _move_subtree(obj, c, move)
-    _set(door, lo, hi)
-    return 1
 
 
 def _beside(a: tuple, b: tuple, d: int) -> bool:

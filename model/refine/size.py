@@ -24,7 +24,7 @@ from model.core import ArticulatedObject
 from model.data.prompt_size import AXIS
 
 from .arrange import FRONT
-from .layout import _lohi, _move_subtree, face_of
+from .layout import _lohi, _move_subtree, _union, face_of
 
 PANELS = ("body", "door", "drawer", "lid", "tray")
 
@@ -221,8 +221,7 @@ def row_thin_drawers(obj: ArticulatedObject, stated: Optional[dict] = None) -> i
     for col in columns:
         if len(col) < 2 or np.median([obj.parts[i].bbox_size[V] for i in col]) >= THIN_DRAWER:
             continue
-        lo = np.min([obj.parts[i].bbox_center - obj.parts[i].bbox_size / 2 for i in col], 0)
-        hi = np.max([obj.parts[i].bbox_center + obj.parts[i].bbox_size / 2 for i in col], 0)
+        lo, hi = _union([obj.parts[i] for i in col])
         n, W, Hh = len(col), hi[H] - lo[H], hi[V] - lo[V]
         options = [[n]] + ([[n // 2, n // 2]] if n % 2 == 0 and n >= 4 else [])
         for per_row in options:
